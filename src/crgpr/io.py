@@ -1,0 +1,129 @@
+"""Parquet / JSON / npz I/O: atomic writes, provenance metadata, schema checks.
+
+Every writer goes through a temporary file in the target directory and an atomic rename,
+so a failed or interrupted step never leaves a file that looks complete.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from . import __version__
+
+META_KEY = b"crgpr"
+
+
+def code_version() -> str:
+    """Package version plus the git commit of the source tree when available."""
+    here = Path(__file__).resolve().parent
+    head = None
+    for parent in [here, *here.parents]:
+        if (parent / ".git").exists():
+            try:
+                import subprocess
+
+                head = subprocess.run(["git", "-C", str(parent), "rev-parse", "--short", "HEAD"],
+                                      capture_output=True, text=True, timeout=5).stdout.strip()
+            except (OSError, subprocess.SubprocessError):
+                head = None
+            break
+    return f"{__version__}+g{head}" if head else __version__
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path, suffix: str = "") -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; rename it into place only on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
+    """Write ``df`` atomically with ``metadata`` (JSON) and the code version in the footer."""
+    meta = {"code_version": code_version(), **(metadata or {})}
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    existing = table.schema.metadata or {}
+    blob = json.dumps(meta, default=_json_default).encode()
+    table = table.replace_schema_metadata({**existing, META_KEY: blob})
+    with atomic_path(path, ".parquet") as tmp:
+        pq.write_table(table, tmp)
+
+
+def read_parquet(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame:
+    """Read a Parquet file; raise ValueError naming the file and any missing column."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        df = pq.read_table(path).to_pandas()
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise ValueError(f"{path}: not a readable Parquet file: {exc}") from exc
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {missing}; has {list(df.columns)}")
+    return df
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    """The crgpr metadata dict stored by ``write_parquet`` (empty if none)."""
+    meta = pq.read_schema(path).metadata or {}
+    raw = meta.get(META_KEY)
+    return json.loads(raw) if raw else {}
+
+
+def write_json(obj: Any, path: str | Path) -> None:
+    with atomic_path(path, ".json") as tmp:
+        tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n")
+
+
+def write_npz(path: str | Path, **arrays: np.ndarray) -> None:
+    """Save arrays (no object arrays: the file must load with allow_pickle=False)."""
+    for k, a in arrays.items():
+        if np.asarray(a).dtype == object:
+            raise TypeError(f"{path}: array {k!r} has dtype object; refusing to pickle")
+    with atomic_path(path, ".npz") as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def load_npz(path: str | Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+def write_csv(df: pd.DataFrame, path: str | Path, **kw: Any) -> None:
+    with atomic_path(path, ".csv") as tmp:
+        df.to_csv(tmp, index=False, **kw)
+
+
+def write_text(text: str, path: str | Path) -> None:
+    with atomic_path(path, Path(path).suffix or ".txt") as tmp:
+        tmp.write_text(text)
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
