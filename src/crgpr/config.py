@@ -35,9 +35,24 @@ def _dotted(path: Any) -> str:
     return ".".join(str(p) for p in path) or "<top level>"
 
 
+def _validator() -> jsonschema.Draft202012Validator:
+    """Validator of the main schema; relative ``$ref``s (stage sections) load from its folder."""
+    from referencing import Registry, Resource
+
+    base = schema_path().parent
+
+    def retrieve(uri: str) -> Resource:
+        rel = uri.split("schemas/", 1)[-1] if "schemas/" in uri else uri
+        return Resource.from_contents(yaml.safe_load((base / rel).read_text()))
+
+    main = schema()
+    main["$id"] = base.joinpath("config.schema.yaml").as_uri()
+    return jsonschema.Draft202012Validator(main, registry=Registry(retrieve=retrieve))
+
+
 def validate_schema(cfg: dict[str, Any], source: str = "config") -> None:
     """Validate against the schema; raise ConfigError naming the first offending key."""
-    validator = jsonschema.Draft202012Validator(schema())
+    validator = _validator()
     errors = sorted(validator.iter_errors(cfg), key=lambda e: list(e.absolute_path))
     if not errors:
         return
