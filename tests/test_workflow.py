@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "tests" / "smoke_config.yaml"
 
 
-def snakemake(*args: str, cwd: Path = ROOT, snakefile: Path = ROOT / "Snakefile") -> subprocess.CompletedProcess:
+def snakemake(*args: str, cwd: Path = ROOT,
+              snakefile: Path = ROOT / "Snakefile") -> subprocess.CompletedProcess:
     cmd = [sys.executable, "-m", "snakemake", "-s", str(snakefile), *args]
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1200)
 
