@@ -10,6 +10,7 @@ import sys
 # Modules that provide ``add_cli(subparsers)``; a stage adds itself here.
 COMMAND_MODULES: list[str] = [
     "crgpr.ground_truth",
+    "crgpr.paper",
 ]
 
 
