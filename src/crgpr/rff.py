@@ -1,0 +1,504 @@
+"""Posterior function samples of the SE / ARD-SE gradient GPs (paper Sec. III, "Uncertainty
+Quantification via RFF Sampling").
+
+Model (Rasmussen & Williams 2006, Sec. 2.7): f(x) = h(x)^T beta + g(x), g ~ GP(0, k),
+k(x, x') = sigma_f^2 exp(-|(x - x') / l|^2 / 2) on standardised inputs, vague prior on beta,
+y = f(X) + eps, eps ~ N(0, sigma_n^2 I). With K_y = K + sigma_n^2 I and A = H^T K_y^-1 H:
+
+    beta | y ~ N(beta_bar, A^-1),   beta_bar = A^-1 H^T K_y^-1 y
+
+and, given beta, g is an ordinary GP posterior. A joint function sample is therefore
+
+    f_s(x) = h(x)^T beta_s + g_s(x) + k(x, X) K_y^-1 (y - H beta_s - g_s(X) - eps_s)      (*)
+
+with beta_s ~ N(beta_bar, A^-1), g_s a prior sample, eps_s ~ N(0, sigma_n^2 I) independent.
+(*) has exactly the R&W eq. (2.42) mean and covariance (mean h^T beta_bar + k K_y^-1 (y - H
+beta_bar); covariance k** - k*^T K_y^-1 k* + R^T A^-1 R): this is Matheron's rule /
+pathwise conditioning (Wilson et al. 2020, the paper's reference for RFF sampling).
+
+Choice: pathwise conditioning, not the weight-space posterior the paper writes.
+    The paper's weight-space sampler w ~ N(mu_w, Sigma_w) of f = phi(x)^T w replaces the
+    kernel by its D-feature approximation everywhere, including in the data fit. With
+    n = 8000-19000 training points, sigma_n / sigma_f ~ 1e-3 and D ~ 1e3 features, the
+    D-dimensional posterior is over-determined by the data: its variance collapses
+    ("variance starvation", Wilson et al. 2020 Fig. 1) and its mean carries the RFF
+    approximation error of k. In (*) the RFF only approximate the *prior* sample g_s;
+    the data update uses the exact kernel, so near the data the sample statistics are
+    those of the exact GP, and far from the data they revert to the (RFF) prior, as they
+    should. ``weight_space_samples`` implements the paper's sampler for comparison.
+
+RFF prior (Rahimi & Recht 2007): g_s(x) = phi(x)^T w_s, phi(x) = sqrt(2 sigma_f^2 / D)
+cos(Omega x + b), Omega_j ~ N(0, diag(1 / l^2)), b_j ~ U[0, 2 pi], w_s ~ N(0, I_D) (paper eq.
+in Sec. III). E[phi(x)^T phi(x')] = k(x, x'); the error of one draw is O(1 / sqrt(D)).
+
+Fast evaluation inside the rollout. The update term k(x, X) alpha_s costs O(n) kernel
+evaluations per point; 10 samples x 26 nodes x 20000 steps x n ~ 35000 is ~2e11 kernel
+evaluations, far beyond the time budget. We therefore compress each sample's update
+function u_s(x) = k(x, X) alpha_s (which also carries the posterior mean) onto M inducing
+inputs Z chosen from X by greedy pivoted Cholesky of K_XX: u_s(x) ~ k(x, Z) a_s with a_s the
+regularised least-squares fit of u_s at all n training inputs,
+
+    a_s = argmin |K_XZ a - u_s(X)|^2 + sigma_n^2 a^T K_ZZ a      (subset-of-regressors fit).
+
+A sample then costs D cosines + M exponentials per point. The compression error is measured
+against the exact update (``compression_error``) at held-out inputs and reported by the UQ
+stage; it is exactly zero for M = n and decreases as M grows.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from numba import njit
+
+from .gp import GP, basis_matrix_std, kernel_matrix
+
+log = logging.getLogger(__name__)
+
+def basis_matrix(Xs: np.ndarray, basis: str) -> np.ndarray:
+    """Explicit basis h(u) (n, p) on standardised inputs, exactly as ``crgpr.gp`` defines it
+    (none, constant, linear, pure_quadratic [1, u, u^2] = MATLAB 'PureQuadratic', quadratic)."""
+    return basis_matrix_std(basis, np.atleast_2d(np.asarray(Xs, dtype=float)))
+
+
+@dataclass
+class GPSpec:
+    """What sampling needs from a fitted SE / ARD-SE GP, in ``crgpr.gp``'s units.
+
+    ``Xs`` (n, d) standardised training inputs u = (x - x_mean) / x_std, ``y`` (n,)
+    standardised targets v = (y - y_mean) / y_scale, kernel hyperparameters in these units
+    (``lengthscales`` (d,), all equal for isotropic SE), ``basis`` a ``crgpr.gp`` basis name.
+    In original units f(x) = y_mean + y_scale g(u) (see ``crgpr.gp``).
+    """
+
+    Xs: np.ndarray
+    y: np.ndarray
+    sigma_f: float
+    lengthscales: np.ndarray
+    sigma_n: float
+    basis: str
+    x_mean: np.ndarray
+    x_std: np.ndarray
+    y_mean: float = 0.0
+    y_scale: float = 1.0
+    name: str = "gp"
+
+    def __post_init__(self) -> None:
+        self.Xs = np.atleast_2d(np.asarray(self.Xs, dtype=float))
+        self.y = np.asarray(self.y, dtype=float).ravel()
+        d = self.Xs.shape[1]
+        self.lengthscales = np.broadcast_to(np.asarray(self.lengthscales, dtype=float), (d,)).copy()
+        self.x_mean = np.broadcast_to(np.asarray(self.x_mean, dtype=float), (d,)).copy()
+        self.x_std = np.broadcast_to(np.asarray(self.x_std, dtype=float), (d,)).copy()
+        if self.y.shape[0] != self.Xs.shape[0]:
+            raise ValueError(f"{self.name}: {self.Xs.shape[0]} inputs but {self.y.shape[0]} targets")
+        if not (self.sigma_f > 0 and self.sigma_n > 0 and np.all(self.lengthscales > 0)):
+            raise ValueError(f"{self.name}: sigma_f, sigma_n and lengthscales must be > 0")
+        basis_matrix(self.Xs[:1], self.basis)  # validates the name
+
+    @property
+    def dim(self) -> int:
+        return self.Xs.shape[1]
+
+    def standardise(self, x: np.ndarray) -> np.ndarray:
+        return (np.asarray(x, dtype=float) - self.x_mean) / self.x_std
+
+    def basis_fn(self, Xs: np.ndarray) -> np.ndarray:
+        return basis_matrix(Xs, self.basis)
+
+    def to_output(self, g: np.ndarray) -> np.ndarray:
+        """Standardised function values -> original output units."""
+        return self.y_mean + self.y_scale * g
+
+
+def spec_from_gp(gp: GP, name: str = "gp") -> GPSpec:
+    """GPSpec of a fitted single-output ``crgpr.gp.GP`` with an SE / ARD-SE kernel."""
+    if gp.kernel != "se":
+        raise ValueError(f"{name}: RFF sampling needs an SE / ARD-SE kernel, got {gp.kernel!r}")
+    if gp.multi:
+        raise ValueError(f"{name}: multi-output GPs are not supported")
+    V = gp._V()[:, 0]
+    return GPSpec(gp.standardise_x(gp.X), V, float(gp.sigma_f),
+                  np.broadcast_to(np.ravel(gp.lengthscales), (gp.dim,)), float(gp.sigma_n), gp.basis,
+                  np.ravel(gp.x_mean), np.ravel(gp.x_scale), float(np.ravel(gp.y_mean)[0]),
+                  float(np.ravel(gp.y_scale)[0]), name)
+
+
+def se_kernel(A: np.ndarray, B: np.ndarray, sigma_f: float, lengthscales: np.ndarray) -> np.ndarray:
+    """k(A, B) = sigma_f^2 exp(-|(a - b) / l|^2 / 2) (SE / ARD-SE) on standardised inputs."""
+    return kernel_matrix("se", A, B, sigma_f, lengthscales)
+
+
+# ----------------------------------------------------------------------------------------
+# exact posterior (reference for tests and for the compression error)
+
+
+@dataclass
+class ExactPosterior:
+    """Cholesky factor of K_y and the basis-coefficient posterior of one GP (R&W Sec. 2.7)."""
+
+    spec: GPSpec
+    chol: np.ndarray  # lower Cholesky factor of K_y
+    H: np.ndarray  # basis at the training inputs (n, p)
+    beta_bar: np.ndarray  # (p,)
+    beta_cov: np.ndarray  # (p, p) = A^-1
+    alpha: np.ndarray  # K_y^-1 (y - H beta_bar)
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        return sla.cho_solve((self.chol, True), r, check_finite=False)
+
+    def mean_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact posterior mean and variance of f at raw inputs x (R&W eq. 2.42)."""
+        sp = self.spec
+        xs = sp.standardise(x)
+        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)  # (n, m)
+        hs = sp.basis_fn(xs)
+        mean = sp.to_output(hs @ self.beta_bar + Ks.T @ self.alpha)
+        v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
+        var = sp.sigma_f**2 - (v * v).sum(0)
+        if self.H.shape[1]:
+            R = hs.T - self.H.T @ self.solve(Ks)  # (p, m)
+            var = var + np.einsum("pm,pq,qm->m", R, self.beta_cov, R)
+        return mean, var * sp.y_scale**2
+
+    def cov(self, x: np.ndarray) -> np.ndarray:
+        """Exact posterior covariance matrix of f at raw inputs x (m, m)."""
+        sp = self.spec
+        xs = sp.standardise(x)
+        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)
+        v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
+        C = se_kernel(xs, xs, sp.sigma_f, sp.lengthscales) - v.T @ v
+        if self.H.shape[1]:
+            R = sp.basis_fn(xs).T - self.H.T @ self.solve(Ks)
+            C = C + R.T @ self.beta_cov @ R
+        return C * sp.y_scale**2
+
+
+def exact_posterior(spec: GPSpec, block: int = 4096) -> ExactPosterior:
+    """Factorise K_y = K + sigma_n^2 I and the basis posterior (O(n^3), done once per GP)."""
+    n = spec.Xs.shape[0]
+    K = np.empty((n, n))
+    for i in range(0, n, block):
+        K[i:i + block] = se_kernel(spec.Xs[i:i + block], spec.Xs, spec.sigma_f, spec.lengthscales)
+    K[np.diag_indices(n)] += spec.sigma_n**2
+    chol = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+    del K
+    H = spec.basis_fn(spec.Xs)
+    y = spec.y
+    solve = lambda r: sla.cho_solve((chol, True), r, check_finite=False)  # noqa: E731
+    p = H.shape[1]
+    if p:
+        KiH = solve(H)
+        A = H.T @ KiH
+        A = 0.5 * (A + A.T)
+        beta_cov = np.linalg.inv(A)
+        beta_cov = 0.5 * (beta_cov + beta_cov.T)
+        beta_bar = beta_cov @ (KiH.T @ y)
+    else:
+        beta_cov = np.zeros((0, 0))
+        beta_bar = np.zeros(0)
+    alpha = solve(y - H @ beta_bar)
+    return ExactPosterior(spec, chol, H, beta_bar, beta_cov, alpha)
+
+
+def posterior_from_gp(gp: GP, name: str = "gp") -> ExactPosterior:
+    """ExactPosterior reusing the Cholesky factors ``crgpr.gp.GP`` already holds (no new
+    O(n^3) factorisation); falls back to ``exact_posterior`` if they are missing."""
+    spec = spec_from_gp(gp, name)
+    if gp._chol is None:
+        return exact_posterior(spec)
+    chol = np.tril(gp._chol[0]) if not gp._chol[1] else gp._chol[0]
+    H = spec.basis_fn(spec.Xs)
+    if H.shape[1]:
+        LA = gp._A_chol[0] if gp._A_chol[1] else gp._A_chol[0].T
+        Ainv = sla.cho_solve((np.tril(LA), True), np.eye(H.shape[1]), check_finite=False)
+        beta_cov = 0.5 * (Ainv + Ainv.T)
+        beta_bar = np.ravel(gp.beta)
+    else:
+        beta_cov, beta_bar = np.zeros((0, 0)), np.zeros(0)
+    return ExactPosterior(spec, chol, H, beta_bar, beta_cov, np.ravel(gp.alpha))
+
+
+# ----------------------------------------------------------------------------------------
+# random Fourier features
+
+
+@dataclass
+class RFF:
+    """D random Fourier features of an SE / ARD-SE kernel on standardised inputs."""
+
+    omega: np.ndarray  # (D, d)
+    phase: np.ndarray  # (D,)
+    sigma_f: float
+
+    @property
+    def n_features(self) -> int:
+        return self.omega.shape[0]
+
+    @property
+    def scale(self) -> float:
+        return math.sqrt(2.0 * self.sigma_f**2 / self.n_features)
+
+    def __call__(self, Xs: np.ndarray) -> np.ndarray:
+        """Feature matrix phi(X) (n, D); phi(x)^T phi(x') ~ k(x, x')."""
+        return self.scale * np.cos(Xs @ self.omega.T + self.phase)
+
+
+def draw_rff(spec: GPSpec, n_features: int, rng: np.random.Generator) -> RFF:
+    """Omega ~ N(0, diag(1 / l^2)), b ~ U[0, 2 pi] (paper Sec. III)."""
+    if n_features < 1:
+        raise ValueError(f"n_features must be >= 1, got {n_features}")
+    omega = rng.standard_normal((n_features, spec.dim)) / spec.lengthscales
+    phase = rng.uniform(0.0, 2.0 * np.pi, n_features)
+    return RFF(omega, phase, spec.sigma_f)
+
+
+# ----------------------------------------------------------------------------------------
+# pathwise samples
+
+
+@dataclass
+class PathwiseSamples:
+    """S joint posterior samples of one GP in the form (*) with the exact update term.
+
+    ``beta`` (S, p), ``w`` (S, D) prior weights, ``alpha`` (S, n) update weights on the
+    training inputs: g_s(u) = h(u)^T beta_s + phi(u)^T w_s + k(u, X) alpha_s in standardised
+    units, f_s(x) = y_mean + y_scale g_s(u).
+    """
+
+    post: ExactPosterior
+    rff: RFF
+    beta: np.ndarray
+    w: np.ndarray
+    alpha: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return self.w.shape[0]
+
+    def update_at_train(self) -> np.ndarray:
+        """u_s(X) = K alpha_s (S, n), from the residual identity K alpha = r - sigma_n^2 alpha."""
+        return self._resid - self.post.spec.sigma_n**2 * self.alpha
+
+    _resid: np.ndarray = field(default=None, repr=False)  # y - H beta_s - g_s(X) - eps_s (S, n)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """All S samples at raw inputs x (m, d) -> (S, m), exact (O(n m))."""
+        sp = self.post.spec
+        xs = sp.standardise(np.atleast_2d(x))
+        Ks = se_kernel(xs, sp.Xs, sp.sigma_f, sp.lengthscales)  # (m, n)
+        out = self.beta @ sp.basis_fn(xs).T + self.w @ self.rff(xs).T + self.alpha @ Ks.T
+        return sp.to_output(out)
+
+
+def pathwise_samples(post: ExactPosterior, n_samples: int, n_features: int,
+                     rng: np.random.Generator) -> PathwiseSamples:
+    """Draw S samples by pathwise conditioning (*) on an RFF prior sample (Wilson et al. 2020)."""
+    sp = post.spec
+    n = sp.Xs.shape[0]
+    rff = draw_rff(sp, n_features, rng)
+    p = post.H.shape[1]
+    if p:
+        Lb = np.linalg.cholesky(post.beta_cov + 1e-14 * np.trace(post.beta_cov) / p * np.eye(p))
+        beta = post.beta_bar + rng.standard_normal((n_samples, p)) @ Lb.T
+    else:
+        beta = np.zeros((n_samples, 0))
+    w = rng.standard_normal((n_samples, n_features))
+    eps = sp.sigma_n * rng.standard_normal((n_samples, n))
+    g_X = np.empty((n_samples, n))
+    for i in range(0, n, 4096):
+        g_X[:, i:i + 4096] = w @ rff(sp.Xs[i:i + 4096]).T
+    resid = sp.y[None, :] - beta @ post.H.T - g_X - eps
+    alpha = post.solve(resid.T).T
+    out = PathwiseSamples(post, rff, beta, w, alpha)
+    out._resid = resid
+    return out
+
+
+def pathwise_covariance(post: ExactPosterior, rff: RFF, x: np.ndarray) -> np.ndarray:
+    """Covariance of (*) at raw inputs x for *these* features (no Monte Carlo).
+
+    f = h^T beta + (phi - k K_y^-1 Phi)^T w - k K_y^-1 (H beta + eps): with c_x = K_y^-1 k_x,
+    Cov = P^T P + sigma_n^2 C^T C + R^T A^-1 R, P = phi(x)^T - Phi(X)^T C. Equals the exact
+    posterior covariance when phi phi^T = k (D -> infinity); used by the convergence test.
+    """
+    sp = post.spec
+    xs = sp.standardise(np.atleast_2d(x))
+    Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)  # (n, m)
+    C = post.solve(Ks)  # (n, m)
+    P = rff(xs).T - rff(sp.Xs).T @ C  # (D, m)
+    cov = P.T @ P + sp.sigma_n**2 * C.T @ C
+    if post.H.shape[1]:
+        R = sp.basis_fn(xs).T - post.H.T @ C
+        cov = cov + R.T @ post.beta_cov @ R
+    return cov * sp.y_scale**2
+
+
+def weight_space_samples(spec: GPSpec, n_samples: int, n_features: int,
+                         rng: np.random.Generator) -> tuple[RFF, np.ndarray, np.ndarray]:
+    """The paper's sampler: Bayesian linear regression on [h(x), phi(x)], w ~ N(0, I), flat
+    prior on beta; returns (rff, beta (S, p), w (S, D)). For comparison only (variance
+    starvation, see the module docstring)."""
+    rff = draw_rff(spec, n_features, rng)
+    Phi = np.hstack([spec.basis_fn(spec.Xs), rff(spec.Xs)])
+    p = Phi.shape[1] - n_features
+    prec = Phi.T @ Phi / spec.sigma_n**2
+    prec[p:, p:] += np.eye(n_features)
+    Lp = np.linalg.cholesky(prec)
+    mu = sla.cho_solve((Lp, True), Phi.T @ spec.y / spec.sigma_n**2)
+    z = rng.standard_normal((n_samples, p + n_features))
+    theta = mu + sla.solve_triangular(Lp, z.T, lower=True, trans="T").T
+    return rff, theta[:, :p], theta[:, p:]
+
+
+# ----------------------------------------------------------------------------------------
+# compression of the update term for the rollout
+
+
+def pivoted_cholesky_inducing(spec: GPSpec, n_inducing: int, tol: float = 1e-10) -> np.ndarray:
+    """Indices of M training inputs chosen by greedy pivoted Cholesky of K_XX (largest
+    remaining conditional variance first); stops early when the residual trace < tol sigma_f^2."""
+    Xs = spec.Xs
+    n = Xs.shape[0]
+    m = min(n_inducing, n)
+    diag = np.full(n, spec.sigma_f**2)
+    L = np.zeros((m, n))
+    piv: list[int] = []
+    for j in range(m):
+        i = int(np.argmax(diag))
+        if diag[i] <= tol * spec.sigma_f**2:
+            break
+        piv.append(i)
+        row = se_kernel(Xs[i:i + 1], Xs, spec.sigma_f, spec.lengthscales)[0]
+        row -= L[:j, i] @ L[:j]
+        row /= math.sqrt(diag[i])
+        L[j] = row
+        diag -= row**2
+        diag[i] = 0.0
+    return np.array(piv, dtype=int)
+
+
+@dataclass
+class CompressedSamples:
+    """S samples for the rollout: f_s(x) = y_mean + y_scale (h(u)^T beta_s + phi(u)^T w_s
+    + k(u, Z) a_s), u the standardised input.
+
+    All arrays are plain (saved to npz): ``omega`` (D, d), ``phase`` (D,), ``w`` (S, D),
+    ``Z`` (M, d) standardised inducing inputs, ``a`` (S, M), ``beta`` (S, p), plus the
+    kernel hyperparameters, standardisation and basis name.
+    """
+
+    omega: np.ndarray
+    phase: np.ndarray
+    w: np.ndarray
+    Z: np.ndarray
+    a: np.ndarray
+    beta: np.ndarray
+    sigma_f: float
+    lengthscales: np.ndarray
+    x_mean: np.ndarray
+    x_std: np.ndarray
+    basis: str
+    y_mean: float = 0.0
+    y_scale: float = 1.0
+
+    @property
+    def n_samples(self) -> int:
+        return self.w.shape[0]
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"omega": self.omega, "phase": self.phase, "w": self.w, "Z": self.Z, "a": self.a,
+                "beta": self.beta, "sigma_f": np.array(self.sigma_f),
+                "lengthscales": self.lengthscales, "x_mean": self.x_mean, "x_std": self.x_std,
+                "basis": np.array(self.basis), "y_mean": np.array(self.y_mean),
+                "y_scale": np.array(self.y_scale)}
+
+    @classmethod
+    def from_arrays(cls, arr: dict[str, np.ndarray]) -> CompressedSamples:
+        return cls(arr["omega"], arr["phase"], arr["w"], arr["Z"], arr["a"], arr["beta"],
+                   float(arr["sigma_f"]), arr["lengthscales"], arr["x_mean"], arr["x_std"],
+                   str(arr["basis"]), float(arr["y_mean"]), float(arr["y_scale"]))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Evaluate sample s at x[s]: x (S, m, d) raw inputs -> (S, m) (compiled)."""
+        x = np.asarray(x, dtype=float)
+        if x.ndim != 3 or x.shape[0] != self.n_samples:
+            raise ValueError(f"expected inputs (S={self.n_samples}, m, d), got {x.shape}")
+        xs = (x - self.x_mean) / self.x_std
+        S, m, d = xs.shape
+        out = np.empty((S, m))
+        _eval_samples(np.ascontiguousarray(xs), self.omega, self.phase, self.w,
+                      self.Z / self.lengthscales, 1.0 / self.lengthscales, self.a,
+                      self.sigma_f**2, math.sqrt(2.0 * self.sigma_f**2 / self.omega.shape[0]), out)
+        if self.beta.shape[1]:
+            H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
+            out += np.einsum("smp,sp->sm", H, self.beta)
+        return self.y_mean + self.y_scale * out
+
+
+@njit(cache=True, fastmath=True)
+def _eval_samples(xs, omega, phase, w, Zl, inv_l, a, sf2, scale, out):
+    S, m, d = xs.shape
+    D = omega.shape[0]
+    M = Zl.shape[0]
+    xl = np.empty(d)
+    for s in range(S):
+        for i in range(m):
+            acc = 0.0
+            for j in range(D):
+                t = phase[j]
+                for k in range(d):
+                    t += omega[j, k] * xs[s, i, k]
+                acc += w[s, j] * math.cos(t)
+            acc *= scale
+            for k in range(d):
+                xl[k] = xs[s, i, k] * inv_l[k]
+            up = 0.0
+            for j in range(M):
+                r2 = 0.0
+                for k in range(d):
+                    dd = xl[k] - Zl[j, k]
+                    r2 += dd * dd
+                up += a[s, j] * math.exp(-0.5 * r2)
+            out[s, i] = acc + sf2 * up
+
+
+def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8) -> CompressedSamples:
+    """Fit k(x, Z) a_s to the exact update u_s(X) at all n training inputs (subset-of-regressors
+    least squares). The ridge (ridge sigma_n)^2 a^T K_ZZ a only stabilises the solve: it must be
+    far below sigma_n^2, else the fit error is of the size of the posterior sd near the data.
+    Solved by QR of the stacked system [K_XZ; ridge sigma_n L_Z^T] (O(n M^2))."""
+    post = samples.post
+    sp = post.spec
+    Z = sp.Xs[inducing]
+    M = Z.shape[0]
+    Kzz = se_kernel(Z, Z, sp.sigma_f, sp.lengthscales)
+    Lz = np.linalg.cholesky(Kzz + 1e-12 * sp.sigma_f**2 * np.eye(M))
+    Kxz = se_kernel(sp.Xs, Z, sp.sigma_f, sp.lengthscales)  # (n, M)
+    A = np.vstack([Kxz, ridge * sp.sigma_n * Lz.T])
+    del Kxz
+    U = samples.update_at_train()  # (S, n)
+    rhs = np.vstack([U.T, np.zeros((M, U.shape[0]))])
+    Q, R = np.linalg.qr(A, mode="reduced")
+    a = sla.solve_triangular(R, Q.T @ rhs, check_finite=False).T
+    return CompressedSamples(samples.rff.omega, samples.rff.phase, samples.w, Z, a, samples.beta,
+                             sp.sigma_f, sp.lengthscales, sp.x_mean, sp.x_std, sp.basis, sp.y_mean,
+                             sp.y_scale)
+
+
+def compression_error(samples: PathwiseSamples, comp: CompressedSamples, x: np.ndarray) -> dict[str, float]:
+    """Max and RMS difference between exact (*) and compressed samples at raw inputs x (m, d),
+    absolute and relative to the posterior standard deviation there."""
+    exact = samples(x)  # (S, m)
+    approx = comp(np.broadcast_to(x, (comp.n_samples, *np.atleast_2d(x).shape)))
+    err = approx - exact
+    _, var = samples.post.mean_var(x)
+    sd = np.sqrt(np.maximum(var, 1e-300))
+    return {"max_abs": float(np.abs(err).max()), "rms": float(np.sqrt(np.mean(err**2))),
+            "max_rel_sd": float(np.abs(err / sd).max()),
+            "rms_rel_sd": float(np.sqrt(np.mean((err / sd) ** 2))),
+            "post_sd_median": float(np.median(sd))}

@@ -1,0 +1,149 @@
+"""RFF / pathwise posterior samples of SE and ARD-SE GPs with explicit bases (crgpr.rff).
+
+Small synthetic problems: exact formulas (R&W eq. 2.42) are the reference.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from crgpr.gp import fit_gp
+from crgpr.io import load_npz, write_npz
+from crgpr.rff import (
+    CompressedSamples,
+    GPSpec,
+    compress,
+    compression_error,
+    draw_rff,
+    exact_posterior,
+    pathwise_covariance,
+    pathwise_samples,
+    pivoted_cholesky_inducing,
+    posterior_from_gp,
+    weight_space_samples,
+)
+
+
+def _problem(basis: str, ard: bool, seed: int = 0, n: int = 120):
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-2.0, 2.0, (n, 2)) * [1.0, 3.0] + [0.5, 1.0]
+    y = 4.0 * np.sin(1.5 * X[:, 0]) + 0.3 * X[:, 1] ** 2 + 0.1 * rng.standard_normal(n)
+    mu, sd = X.mean(0), X.std(0)
+    ell = [0.6, 0.9] if ard else [0.7, 0.7]
+    spec = GPSpec((X - mu) / sd, (y - y.mean()) / y.std(), 1.1, ell, 0.05, basis, mu, sd,
+                  float(y.mean()), float(y.std()))
+    # test inputs: inside the data, at its edge and outside it (prior reversion)
+    xt = np.vstack([X[:3] + 0.05, rng.uniform(-3.0, 3.0, (9, 2)) * [1.0, 3.0] + [0.5, 1.0]])
+    return spec, xt
+
+
+@pytest.mark.parametrize(("basis", "ard"), [("none", False), ("constant", True),
+                                             ("pure_quadratic", True)])
+def test_sample_moments_match_exact_posterior(basis: str, ard: bool) -> None:
+    """Many pathwise samples: mean and variance of f equal the exact GP posterior (incl. the
+    basis-coefficient posterior) within Monte Carlo error plus the small RFF bias (D = 4000)."""
+    spec, xt = _problem(basis, ard)
+    post = exact_posterior(spec)
+    mean, var = post.mean_var(xt)
+    S = 3000
+    smp = pathwise_samples(post, S, 4000, np.random.default_rng(1))
+    f = smp(xt)
+    sd = np.sqrt(var)
+    # mean: MC standard error sd / sqrt(S); 5 standard errors over 12 points
+    assert np.all(np.abs(f.mean(0) - mean) < 5.0 * sd / np.sqrt(S))
+    # variance: MC relative error sqrt(2 / S) = 2.6 %, RFF bias with D = 4000 a few %
+    rel = f.var(0, ddof=1) / var - 1.0
+    assert np.all(np.abs(rel) < 0.15), rel
+    # the MC sampler against its own closed-form covariance for these features: MC error only
+    Cf = pathwise_covariance(post, smp.rff, xt)
+    rel_f = f.var(0, ddof=1) / np.diag(Cf) - 1.0
+    assert np.all(np.abs(rel_f) < 5.0 * np.sqrt(2.0 / S)), rel_f
+    # joint samples: the full covariance, not just the diagonal
+    Cs = np.cov(f.T)
+    assert np.abs(Cs - Cf).max() < 6.0 * np.sqrt(2.0 / S) * var.max()
+
+
+def test_basis_posterior_is_part_of_the_sample() -> None:
+    """Far from the data the basis uncertainty dominates: dropping it underestimates the
+    variance, keeping it reproduces R&W 2.42."""
+    spec, _ = _problem("pure_quadratic", True)
+    post = exact_posterior(spec)
+    x_far = np.array([[6.0, 12.0], [-5.0, -10.0]])
+    _, var = post.mean_var(x_far)
+    C = pathwise_covariance(post, draw_rff(spec, 20000, np.random.default_rng(3)), x_far)
+    np.testing.assert_allclose(np.diag(C), var, rtol=0.05)
+    post.beta_cov[:] = 0.0
+    C0 = pathwise_covariance(post, draw_rff(spec, 20000, np.random.default_rng(3)), x_far)
+    assert np.all(np.diag(C0) < 0.5 * var)
+
+
+def test_covariance_converges_with_number_of_features() -> None:
+    """D -> large: the closed-form covariance of the pathwise sampler tends to the exact one
+    (error ~ D^-1/2), averaged over feature draws."""
+    spec, xt = _problem("constant", True)
+    post = exact_posterior(spec)
+    C = post.cov(xt)
+    rng = np.random.default_rng(5)
+    errs = []
+    for D in (16, 256, 4096):
+        e = [np.abs(pathwise_covariance(post, draw_rff(spec, D, rng), xt) - C).max() for _ in range(4)]
+        errs.append(np.mean(e))
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[2] < 0.25 * errs[0]
+    assert errs[2] < 0.05 * np.diag(C).max()
+
+
+def test_weight_space_sampler_starves_variance() -> None:
+    """The paper's weight-space sampler underestimates the variance away from the data
+    (variance starvation, Wilson et al. 2020): the documented reason for choosing pathwise
+    conditioning, which gets it right with the same number of features."""
+    spec, _ = _problem("none", False, n=200)
+    post = exact_posterior(spec)
+    x_far = np.array([[3.5, 1.0], [0.5, 9.0], [-2.5, -6.0]])
+    _, var = post.mean_var(x_far)
+    rff, beta, w = weight_space_samples(spec, 2000, 40, np.random.default_rng(2))
+    assert beta.shape == (2000, 0)
+    f_ws = spec.to_output(w @ rff(spec.standardise(x_far)).T)
+    assert np.all(f_ws.var(0) < 0.3 * var)
+    f_pw = pathwise_samples(post, 2000, 40, np.random.default_rng(2))(x_far)
+    assert np.all(f_pw.var(0) > 0.5 * var)
+
+
+def test_compression_converges_and_roundtrips(tmp_path) -> None:
+    """The inducing-point compression of the update term: error falls with M and is tiny
+    when Z spans K_XX; the compressed samples survive an npz round trip."""
+    spec, xt = _problem("pure_quadratic", True)
+    post = exact_posterior(spec)
+    smp = pathwise_samples(post, 5, 300, np.random.default_rng(4))
+    errs = []
+    for M in (10, 40, 120):
+        comp = compress(smp, pivoted_cholesky_inducing(spec, M))
+        errs.append(compression_error(smp, comp, xt)["max_rel_sd"])
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[2] < 1e-2
+    write_npz(tmp_path / "c.npz", **comp.to_arrays())
+    back = CompressedSamples.from_arrays(load_npz(tmp_path / "c.npz"))
+    x3 = np.broadcast_to(xt, (5, *xt.shape))
+    np.testing.assert_allclose(back(x3), comp(x3), rtol=1e-12, atol=1e-12)
+
+
+def test_from_fitted_gp_matches_gp_predictions() -> None:
+    """posterior_from_gp reuses crgpr.gp's factors: same mean and variance as GP.predict, and
+    samples centre on it."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1.0, 1.0, (80, 3))
+    y = 50.0 + 20.0 * X[:, 0] * X[:, 1] + np.cos(3.0 * X[:, 2]) + 0.01 * rng.standard_normal(80)
+    gp = fit_gp(X, y, kernel="ard_se", basis="constant", n_restarts=1, seed=0)
+    post = posterior_from_gp(gp, "toy")
+    xt = rng.uniform(-1.2, 1.2, (6, 3))
+    m, v = post.mean_var(xt)
+    mg, vg = gp.predict(xt, return_var=True)
+    np.testing.assert_allclose(m, mg, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(v, vg, rtol=1e-6, atol=1e-12)
+    f = pathwise_samples(post, 2000, 2000, np.random.default_rng(1))(xt)
+    assert np.all(np.abs(f.mean(0) - m) < 5.0 * np.sqrt(v) / np.sqrt(2000) + 1e-9)
+    with pytest.raises(ValueError, match="SE"):
+        from crgpr.gp import fit_gp as fg
+
+        posterior_from_gp(fg(X, y, kernel="matern52", n_restarts=0), "m52")
