@@ -217,6 +217,11 @@ class GP:
         Y = self.Y if self.Y.ndim == 2 else self.Y[:, None]
         return (Y - self.y_mean) / self.y_scale
 
+    def ensure_factorised(self) -> None:
+        """Cholesky factor of K + sigma_n^2 I over all n points (done once, on demand)."""
+        if self.alpha is None:
+            self._factorise()
+
     def _factorise(self) -> None:
         U = self.standardise_x(self.X)
         ell = np.broadcast_to(self.lengthscales, (self.dim,)).astype(float)
@@ -245,6 +250,7 @@ class GP:
 
     def predict(self, Xs: np.ndarray, return_var: bool = False, chunk: int = 4096):
         """Posterior mean (and latent variance, output units^2) at inputs Xs (original units)."""
+        self.ensure_factorised()
         Us = self.standardise_x(Xs)
         U = self.standardise_x(self.X)
         ell = np.broadcast_to(self.lengthscales, (self.dim,)).astype(float)
@@ -277,7 +283,7 @@ class GP:
         d = us[:, None] - u[None, :]
         k1, k2 = _kernel_derivs_1d(self.kernel, d, self.sigma_f, float(np.ravel(self.lengthscales)[0]))
         h1, h2 = _basis_derivs_1d(self.basis, us)
-        m = self.predict(xs)
+        m = self.predict(xs)  # factorises if needed
         xs_ = float(self.x_scale[0])
         d1 = (k1 @ self.alpha + h1 @ self.beta) * self.y_scale / xs_
         d2 = (k2 @ self.alpha + h2 @ self.beta) * self.y_scale / xs_**2
@@ -298,8 +304,13 @@ class GP:
         }
 
     # ---- (de)serialisation -------------------------------------------------------------------
-    def save(self, stem: str | Path, extra: dict[str, Any] | None = None) -> tuple[Path, Path]:
-        """Write ``stem.npz`` (arrays) and ``stem.json`` (everything else), atomically."""
+    def save(self, stem: str | Path, extra: dict[str, Any] | None = None,
+             extra_arrays: dict[str, np.ndarray] | None = None) -> tuple[Path, Path]:
+        """Write ``stem.npz`` (arrays) and ``stem.json`` (everything else), atomically.
+
+        ``extra_arrays`` (e.g. an approximation of the mean) are stored in the same npz;
+        ``load`` ignores them.
+        """
         from .io import write_json, write_npz
 
         stem = Path(stem)
@@ -307,7 +318,8 @@ class GP:
         js = stem.with_suffix(".json")
         write_npz(npz, X=self.X, Y=self.Y, x_mean=self.x_mean, x_scale=self.x_scale,
                   y_mean=self.y_mean, y_scale=self.y_scale,
-                  lengthscales=np.ravel(np.asarray(self.lengthscales, dtype=float)))
+                  lengthscales=np.ravel(np.asarray(self.lengthscales, dtype=float)),
+                  **(extra_arrays or {}))
         meta = {**self.hyperparameters(), "multi": self.multi, "info": self.info,
                 "x_mean": self.x_mean, "x_scale": self.x_scale, "y_mean": self.y_mean,
                 "y_scale": self.y_scale, "standardisation": "u = (x - x_mean) / x_scale; "
@@ -333,8 +345,7 @@ class GP:
                  y_mean=arr["y_mean"], y_scale=arr["y_scale"], X=arr["X"], Y=arr["Y"],
                  lml=float(meta.get("lml", float("nan"))),
                  info={**meta.get("info", {}), "multi": bool(meta.get("multi", False))})
-        gp._factorise()
-        return gp
+        return gp  # factorised on the first prediction (ensure_factorised)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -384,7 +395,7 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
            sigma_n_min: float | None = None, noise_var_min_std: float | None = None,
            n_restarts: int = 3, seed: int = 0, hyper_subset: int | None = None,
            standardise_y: bool = True, init: dict[str, Any] | None = None,
-           fixed: dict[str, Any] | None = None, maxiter: int = 200) -> GP:
+           fixed: dict[str, Any] | None = None, maxiter: int = 200, factorise: bool = True) -> GP:
     """Fit an exact GP by maximising the log marginal likelihood (R&W Sec. 2.7, eq. 2.45).
 
     X (n, d) or (n,); Y (n,) or (n, k) with k columns sharing the hyperparameters.
@@ -393,7 +404,8 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
     paper's 1e-9 of the state GPs); the larger bound wins. ``hyper_subset``: optimise on a
     random subset of this many points (seeded), then condition on all points.
     ``fixed``: skip the optimisation and use these standardised hyperparameters
-    ({'sigma_f', 'lengthscales', 'sigma_n'}).
+    ({'sigma_f', 'lengthscales', 'sigma_n'}). ``factorise=False`` defers the O(n^3) Cholesky
+    factorisation over all n points to the first prediction.
     """
     if kernel == "ard_se":
         kernel, ard = "se", True
@@ -472,7 +484,8 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
     gp = GP(kernel=kernel, ard=ard, basis=basis, sigma_f=sf, lengthscales=np.asarray(ell, float),
             sigma_n=sn, x_mean=x_mean, x_scale=x_scale, y_mean=y_mean, y_scale=y_scale,
             X=X, Y=Y, lml=lml, info=info)
-    gp._factorise()
+    if factorise:
+        gp._factorise()
     return gp
 
 
