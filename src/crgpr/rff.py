@@ -490,6 +490,90 @@ def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8
                              sp.y_scale)
 
 
+@dataclass
+class SparsePosterior:
+    """Sparse (DTC) posterior of one GP on M inducing inputs Z, incl. the basis coefficients.
+
+    Nystrom features psi(u) = k(u, Z) L_Z^-T (psi psi^T = Q = K_uZ K_ZZ^-1 K_Zu) turn the DTC
+    likelihood y ~ N(H beta + Psi v, sigma_n^2 I), v ~ N(0, I), flat prior on beta, into a
+    Bayesian linear model in theta = (beta, v): precision P = F^T F / sigma_n^2 + diag(0, I),
+    F = [H, Psi], mean P^-1 F^T y / sigma_n^2 (O(n M^2), no O(n^3) factorisation). The
+    predictive is the DTC one (Quinonero-Candela & Rasmussen 2005): [h, psi] P^-1 [h, psi]^T
+    + k** - Q**. With Z = X it is the exact posterior of R&W Sec. 2.7.
+    """
+
+    spec: GPSpec
+    Z: np.ndarray  # (M, d) standardised
+    LZ: np.ndarray  # lower Cholesky factor of K_ZZ (+ jitter)
+    RP: np.ndarray  # upper triangular, P = RP^T RP
+    mu: np.ndarray  # (p + M,)
+
+    @property
+    def n_basis(self) -> int:
+        return self.mu.shape[0] - self.Z.shape[0]
+
+    def features(self, xs: np.ndarray) -> np.ndarray:
+        """[h(u), psi(u)] at standardised inputs (m, p + M)."""
+        sp = self.spec
+        Kxz = se_kernel(xs, self.Z, sp.sigma_f, sp.lengthscales)
+        psi = sla.solve_triangular(self.LZ, Kxz.T, lower=True, check_finite=False).T
+        return np.hstack([sp.basis_fn(xs), psi])
+
+    def mean_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """DTC predictive mean and variance of f at raw inputs (original units)."""
+        sp = self.spec
+        xs = sp.standardise(np.atleast_2d(x))
+        F = self.features(xs)
+        mean = F @ self.mu
+        G = sla.solve_triangular(self.RP, F.T, trans="T", check_finite=False)
+        psi = F[:, self.n_basis:]
+        var = (G * G).sum(0) + sp.sigma_f**2 - (psi * psi).sum(1)
+        return sp.to_output(mean), var * sp.y_scale**2
+
+    def sample(self, n_samples: int, n_features: int, rng: np.random.Generator) -> CompressedSamples:
+        """S joint samples f_s = h^T beta_s + psi^T v_s + (phi - k_Z K_ZZ^-1 Phi_Z)^T w_s: the
+        DTC posterior of (beta, v) plus an RFF sample of the prior residual k - Q (Wilson et al.
+        2020, eq. 13 with the optimal q(u)), as compressed samples k(u, Z) a_s + ..."""
+        sp = self.spec
+        rff = draw_rff(sp, n_features, rng)
+        z = rng.standard_normal((n_samples, self.mu.shape[0]))
+        theta = self.mu + sla.solve_triangular(self.RP, z.T, check_finite=False).T
+        p = self.n_basis
+        beta, v = theta[:, :p], theta[:, p:]
+        w = rng.standard_normal((n_samples, n_features))
+        # k(u, Z) a_s = psi(u) v_s - k(u, Z) K_ZZ^-1 Phi(Z) w_s,  psi = k L_Z^-T
+        a_v = sla.solve_triangular(self.LZ, v.T, lower=True, trans="T", check_finite=False)
+        a_w = sla.cho_solve((self.LZ, True), rff(self.Z) @ w.T, check_finite=False)
+        a = (a_v - a_w).T
+        return CompressedSamples(rff.omega, rff.phase, w, self.Z.copy(), a, beta, sp.sigma_f,
+                                 sp.lengthscales, sp.x_mean, sp.x_std, sp.basis, sp.y_mean, sp.y_scale)
+
+
+def sparse_posterior(spec: GPSpec, Z: np.ndarray, jitter: float = 1e-10, block: int = 8192
+                     ) -> SparsePosterior:
+    """Factorise the DTC posterior on standardised inducing inputs Z (see SparsePosterior);
+    the stacked system [F / sigma_n; diag(0, I)] is reduced by blocked QR for stability."""
+    Z = np.atleast_2d(np.asarray(Z, dtype=float))
+    M = Z.shape[0]
+    LZ = np.linalg.cholesky(se_kernel(Z, Z, spec.sigma_f, spec.lengthscales)
+                            + jitter * spec.sigma_f**2 * np.eye(M))
+    p = spec.basis_fn(spec.Xs[:1]).shape[1]
+    prior = np.zeros((M, p + M))
+    prior[:, p:] = np.eye(M)
+    R = prior
+    rhs = np.zeros(M)
+    n = spec.Xs.shape[0]
+    for i in range(0, n, block):
+        xs = spec.Xs[i:i + block]
+        Kxz = se_kernel(xs, Z, spec.sigma_f, spec.lengthscales)
+        psi = sla.solve_triangular(LZ, Kxz.T, lower=True, check_finite=False).T
+        F = np.hstack([spec.basis_fn(xs), psi]) / spec.sigma_n
+        Q, R = np.linalg.qr(np.vstack([R, F]), mode="reduced")
+        rhs = Q.T @ np.concatenate([rhs, spec.y[i:i + block] / spec.sigma_n])
+    mu = sla.solve_triangular(R, rhs, check_finite=False)
+    return SparsePosterior(spec, Z, LZ, R, mu)
+
+
 def compression_error(samples: PathwiseSamples, comp: CompressedSamples, x: np.ndarray) -> dict[str, float]:
     """Max and RMS difference between exact (*) and compressed samples at raw inputs x (m, d),
     absolute and relative to the posterior standard deviation there."""

@@ -1,0 +1,396 @@
+"""Trajectory-level uncertainty of CR-GPR (paper Sec. III "Uncertainty Quantification via RFF
+Sampling" and Sec. V "Uncertainty Quantification Results", Fig. combined_shapes right).
+
+Stages (rules in workflow/rules/uq.smk):
+
+``uq_samples``   For every SE / ARD-SE gradient GP of the UQ method (paper Table II: q_x, q_y,
+                 dH/dtheta, dH/dp_x, dH/dp_y, dH/dp_theta) draw S joint posterior function
+                 samples (``crgpr.rff``: sparse pathwise conditioning on M inducing inputs, or
+                 exact pathwise conditioning compressed onto them), basis coefficients
+                 included, and write them as plain arrays to
+                 ``results/uq/samples/{model}.npz``; the sampling-approximation errors are
+                 measured against the exact GP posterior and written to
+                 ``results/uq/samples/diagnostics.json``.
+``uq_rollout``   Per test angle, the S sampled H_z are integrated through the same Stormer-
+                 Verlet rollout as the CR-GPR mean model (dt = simulation.dt_s), all S samples
+                 as one batch (the state carries a sample axis; the sampled functions are
+                 evaluated for all samples in one compiled call per model and step). Writes
+                 ``results/uq/{angle}.parquet``: one row per (sample, t, node), the state columns
+                 of the ground truth plus ``sample``.
+``uq_coverage``  Per angle: the 2.5-97.5 % percentile band over the S samples at every (t, node)
+                 and the fraction of ground-truth theta values inside it (``theta_coverage``;
+                 the clamped base node and t = 0, identical in every run, are excluded), the
+                 tip-position coverage (x and y of the tip both inside their bands,
+                 ``tip_coverage``), band widths and RMSE of the band centre.
+                 ``results/uq/coverage.parquet`` and ``results/tables/uq_coverage.csv``.
+``uq_figure``    Rod configurations at four time instants with the 95 % band shaded and the
+                 ground truth dashed (``results/figures/uq_band_{angle}.png``).
+
+A note on S = 10 (the paper's value). The 2.5 / 97.5 % percentiles of 10 samples (linear
+interpolation) lie just inside the sample minimum and maximum. If the ground truth were an
+eleventh draw from the same distribution, it would fall inside the sample range with
+probability 9 / 11 = 0.82, so even a perfectly calibrated model cannot reach 0.95 coverage with
+S = 10 (0.79 with the interpolated 2.5 / 97.5 % percentiles); ``expected_coverage_calibrated``
+gives this reference for the band and S used. We report
+this reference next to the measured coverage instead of widening the band.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .io import read_parquet, write_csv, write_json, write_npz, write_parquet
+from .rff import (
+    CompressedSamples,
+    GPSpec,
+    exact_posterior,
+    pathwise_samples,
+    pivoted_cholesky_inducing,
+    sparse_posterior,
+)
+from .rff import compress as compress_samples
+from .simulate import TRAJECTORY_COLUMNS
+
+log = logging.getLogger(__name__)
+
+SAMPLERS = ("sparse_pathwise", "exact_pathwise")
+UQ_COLUMNS: tuple[str, ...] = ("sample", *TRAJECTORY_COLUMNS)
+COVERAGE_COLUMNS: tuple[str, ...] = (
+    "theta0_deg", "n_samples", "n_diverged", "band_lo_pct", "band_hi_pct",
+    "theta_coverage", "tip_coverage", "tip_x_coverage", "tip_y_coverage",
+    "expected_coverage_calibrated", "theta_band_width_mean", "tip_band_width_mean",
+    "theta_rmse_median", "theta_rmse_mean_model", "theta_abs_err_over_halfwidth_median",
+)
+
+
+@dataclass(frozen=True)
+class UQSettings:
+    """Section ``uq`` of config.yaml (see its schema for units and ranges)."""
+
+    method: str
+    sampler: str
+    n_samples: int
+    n_features: int
+    inducing: int
+    band_pct: tuple[float, float]
+    angles_deg: tuple[int, ...]
+    figure_angle_deg: int
+    figure_time_fractions: tuple[float, ...]
+    exact_check_max_n: int
+    check_points: int
+
+    @classmethod
+    def from_config(cls, cfg: dict[str, Any]) -> UQSettings:
+        u = cfg["uq"]
+        s = cls(method=u["method"], sampler=u["sampler"], n_samples=int(u["n_samples"]),
+                n_features=int(u["n_features"]), inducing=int(u["inducing"]),
+                band_pct=(float(u["band_percentiles"][0]), float(u["band_percentiles"][1])),
+                angles_deg=tuple(int(a) for a in u["angles_deg"]),
+                figure_angle_deg=int(u["figure_angle_deg"]),
+                figure_time_fractions=tuple(float(f) for f in u["figure_time_fractions"]),
+                exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]))
+        if s.sampler not in SAMPLERS:
+            raise ValueError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
+        if not s.band_pct[0] < s.band_pct[1]:
+            raise ValueError("config key uq.band_percentiles: need lower < upper")
+        return s
+
+
+def uq_seed(cfg: dict[str, Any], model_index: int) -> int:
+    """Seed of the samples of one gradient model, derived from the global ``seed``."""
+    return int(np.random.SeedSequence([int(cfg["seed"]), 5, model_index]).generate_state(1)[0])
+
+
+# ----------------------------------------------------------------------------------------
+# stage 1: samples of every gradient GP
+
+
+def load_gp_spec(stem: str | Path, name: str) -> GPSpec:
+    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GPSpec without the
+    O(n^3) factorisation ``GP.load`` performs."""
+    stem = Path(stem)
+    npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
+    for p in (npz, js):
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: gradient model file missing (run the gradient_models rule)")
+    meta = json.loads(js.read_text())
+    if meta.get("kernel") != "se":
+        raise ValueError(f"{js}: kernel {meta.get('kernel')!r}; RFF sampling needs SE / ARD-SE")
+    with np.load(npz, allow_pickle=False) as a:
+        arr = {k: a[k] for k in a.files}
+    X = np.asarray(arr["X"], dtype=float)
+    X = X[:, None] if X.ndim == 1 else X
+    Y = np.asarray(arr["Y"], dtype=float)
+    if Y.ndim == 2 and Y.shape[1] != 1:
+        raise ValueError(f"{npz}: {Y.shape[1]} output columns; expected a single-output GP")
+    y_mean = float(np.ravel(arr["y_mean"])[0])
+    y_scale = float(np.ravel(arr["y_scale"])[0])
+    x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
+    return GPSpec((X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
+                  np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)),
+                  float(meta["sigma_n_std"]), str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+
+
+def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int
+                       ) -> tuple[CompressedSamples, dict[str, Any]]:
+    """S compressed joint samples of one GP plus diagnostics (approximation error against the
+    exact posterior at ``check_points`` training inputs when n <= exact_check_max_n)."""
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    idx = pivoted_cholesky_inducing(spec, settings.inducing)
+    Z = spec.Xs[idx]
+    info: dict[str, Any] = {"model": spec.name, "n": int(spec.Xs.shape[0]), "dim": spec.dim,
+                            "basis": spec.basis, "inducing": int(len(idx)), "sampler": settings.sampler,
+                            "n_features": settings.n_features, "n_samples": settings.n_samples,
+                            "seed": seed}
+    n = spec.Xs.shape[0]
+    exact_ok = n <= settings.exact_check_max_n
+    post = exact_posterior(spec) if (exact_ok or settings.sampler == "exact_pathwise") else None
+    if settings.sampler == "sparse_pathwise":
+        sp = sparse_posterior(spec, Z)
+        comp = sp.sample(settings.n_samples, settings.n_features, rng)
+    else:
+        smp = pathwise_samples(post, settings.n_samples, settings.n_features, rng)
+        comp = compress_samples(smp, idx)
+    info["sampling_s"] = time.perf_counter() - t0
+    if post is not None:
+        chk = np.random.default_rng(seed + 1).choice(n, size=min(settings.check_points, n), replace=False)
+        xr = spec.Xs[chk] * spec.x_std + spec.x_mean
+        m_ex, v_ex = post.mean_var(xr)
+        sd_ex = np.sqrt(np.maximum(v_ex, 1e-300))
+        if settings.sampler == "sparse_pathwise":
+            m_ap, v_ap = sp.mean_var(xr)
+            info["mean_err_max_over_sd"] = float(np.max(np.abs(m_ap - m_ex) / sd_ex))
+            info["mean_err_rms_over_sd"] = float(np.sqrt(np.mean(((m_ap - m_ex) / sd_ex) ** 2)))
+            info["sd_ratio_median"] = float(np.median(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
+            info["sd_ratio_min"] = float(np.min(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
+            info["sd_ratio_max"] = float(np.max(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
+        else:
+            exact_f = smp(xr)
+            approx_f = comp(np.broadcast_to(xr, (comp.n_samples, *xr.shape)))
+            err = (approx_f - exact_f) / sd_ex
+            info["compression_err_max_over_sd"] = float(np.abs(err).max())
+            info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
+        info["exact_sd_median"] = float(np.median(sd_ex))
+        info["y_scale"] = spec.y_scale
+    else:
+        info["exact_check"] = f"skipped: n = {n} > uq.exact_check_max_n = {settings.exact_check_max_n}"
+    log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
+    return comp, info
+
+
+def sample_models(model_stems: dict[str, str], settings: UQSettings, cfg: dict[str, Any],
+                  out_dir: str | Path, diagnostics_out: str | Path) -> dict[str, CompressedSamples]:
+    """Stage ``uq_samples``: samples of every model, one npz each, plus diagnostics JSON."""
+    out_dir = Path(out_dir)
+    diags = {}
+    result = {}
+    for i, (name, stem) in enumerate(model_stems.items()):
+        spec = load_gp_spec(stem, name)
+        comp, info = draw_model_samples(spec, settings, uq_seed(cfg, i))
+        write_npz(out_dir / f"{name}.npz", **comp.to_arrays())
+        diags[name] = info
+        result[name] = comp
+    write_json({"settings": settings.__dict__, "models": diags}, diagnostics_out)
+    return result
+
+
+def load_samples(paths: dict[str, str | Path]) -> dict[str, CompressedSamples]:
+    from .io import load_npz
+
+    return {name: CompressedSamples.from_arrays(load_npz(p)) for name, p in paths.items()}
+
+
+# ----------------------------------------------------------------------------------------
+# stage 3: bands and coverage
+
+
+def expected_coverage_calibrated(n_samples: int, lo_pct: float, hi_pct: float,
+                                 n_mc: int | None = None) -> float:
+    """Coverage a perfectly calibrated model reaches with S samples: P(an (S+1)-th draw from the
+    same distribution lies inside the [lo, hi] percentile band (numpy linear interpolation) of
+    S draws), by Monte Carlo with Gaussian draws (fixed seed). 0.79 for S = 10 and 2.5 / 97.5 %
+    (the sample range alone gives 9 / 11 = 0.82); -> (hi - lo) / 100 as S grows."""
+    rng = np.random.default_rng(0)
+    n_mc = n_mc or max(20_000, min(200_000, 4_000_000 // (n_samples + 1)))
+    x = rng.standard_normal((n_mc, n_samples + 1))
+    q = np.percentile(x[:, :n_samples], [lo_pct, hi_pct], axis=1)
+    return float(np.mean((x[:, -1] >= q[0]) & (x[:, -1] <= q[1])))
+
+
+def band_arrays(df: pd.DataFrame, cols: tuple[str, ...], lo: float, hi: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-sample arrays (S, n_t, n_nodes, len(cols)) and their lo / median / hi percentiles and
+    mean over the samples. Rows must cover the full (sample, t, node) grid."""
+    df = df.sort_values(["sample", "t", "node"])
+    S = df["sample"].nunique()
+    n_t = df["t"].nunique()
+    n_nodes = df["node"].nunique()
+    if len(df) != S * n_t * n_nodes:
+        raise ValueError(f"UQ table has {len(df)} rows, expected S x n_t x n_nodes = "
+                         f"{S} x {n_t} x {n_nodes}")
+    arr = df[list(cols)].to_numpy().reshape(S, n_t, n_nodes, len(cols))
+    q = np.percentile(arr, [lo, 50.0, hi], axis=0)
+    return arr, q[0], q[1], q[2], arr.mean(0)
+
+
+def coverage_row(uq: pd.DataFrame, gt: pd.DataFrame, lo: float, hi: float, n_diverged: int = 0
+                 ) -> dict[str, Any]:
+    """Coverage of the ground truth by the [lo, hi] percentile band for one angle."""
+    gt = gt.sort_values(["t", "node"])
+    t_uq = np.sort(uq["t"].unique())
+    t_gt = np.sort(gt["t"].unique())
+    if len(t_uq) != len(t_gt) or not np.allclose(t_uq, t_gt, atol=1e-9):
+        raise ValueError(f"UQ and ground-truth time grids differ ({len(t_uq)} vs {len(t_gt)} samples)")
+    cols = ("x", "y", "theta")
+    arr, qlo, qmed, qhi, mean = band_arrays(uq, cols, lo, hi)
+    S, n_t, n_nodes, _ = arr.shape
+    g = gt[list(cols)].to_numpy().reshape(n_t, n_nodes, len(cols))
+    inside = (g >= qlo) & (g <= qhi)
+    th_in = inside[1:, 1:, 2]  # no t = 0 and no clamped base node
+    tip_x, tip_y = inside[1:, -1, 0], inside[1:, -1, 1]
+    err_med = qmed[..., 2] - g[..., 2]
+    half = 0.5 * (qhi[..., 2] - qlo[..., 2])
+    return {
+        "theta0_deg": float(gt["theta0_deg"].iloc[0]), "n_samples": int(S), "n_diverged": int(n_diverged),
+        "band_lo_pct": lo, "band_hi_pct": hi,
+        "theta_coverage": float(th_in.mean()),
+        "tip_coverage": float((tip_x & tip_y).mean()),
+        "tip_x_coverage": float(tip_x.mean()), "tip_y_coverage": float(tip_y.mean()),
+        "expected_coverage_calibrated": expected_coverage_calibrated(S, lo, hi),
+        "theta_band_width_mean": float((qhi[1:, 1:, 2] - qlo[1:, 1:, 2]).mean()),
+        "tip_band_width_mean": float(np.hypot(qhi[1:, -1, 0] - qlo[1:, -1, 0],
+                                              qhi[1:, -1, 1] - qlo[1:, -1, 1]).mean()),
+        "theta_rmse_median": float(np.sqrt(np.mean(err_med[:, 1:] ** 2))),
+        "theta_rmse_mean_model": float(np.sqrt(np.mean((mean[..., 2] - g[..., 2])[:, 1:] ** 2))),
+        "theta_abs_err_over_halfwidth_median": float(np.median(
+            np.abs(err_med[1:, 1:]) / np.maximum(half[1:, 1:], 1e-12))),
+    }
+
+
+def coverage_table(uq_paths: dict[int, str], gt_paths: dict[int, str], settings: UQSettings,
+                   out_parquet: str | Path, out_csv: str | Path) -> pd.DataFrame:
+    """Stage ``uq_coverage``: one row per angle (``COVERAGE_COLUMNS``) plus a mean row in the CSV."""
+    from .io import read_metadata
+
+    rows = []
+    for angle in sorted(uq_paths):
+        uq = read_parquet(uq_paths[angle], required=UQ_COLUMNS)
+        gt = read_parquet(gt_paths[angle], required=TRAJECTORY_COLUMNS)
+        n_div = int(read_metadata(uq_paths[angle]).get("n_diverged", 0))
+        rows.append(coverage_row(uq, gt, *settings.band_pct, n_diverged=n_div))
+    df = pd.DataFrame(rows, columns=list(COVERAGE_COLUMNS))
+    meta = {"kind": "uq_coverage", "settings": settings.__dict__,
+            "definition": "fraction of ground-truth samples inside the [lo, hi] percentile band of "
+                          "the S sampled trajectories; theta over all t > 0 and nodes 1..N; tip: "
+                          "x and y both inside; expected_coverage_calibrated = the value a calibrated "
+                          "model reaches with this S"}
+    write_parquet(df, out_parquet, meta)
+    table = df.copy()
+    mean = table.drop(columns=["theta0_deg"]).mean(numeric_only=True)
+    table["angle"] = table["theta0_deg"].map(lambda a: f"{a:g}")
+    mean_row = {**mean.to_dict(), "angle": "mean", "theta0_deg": np.nan}
+    table = pd.concat([table, pd.DataFrame([mean_row])], ignore_index=True)
+    table = table[["angle", *[c for c in COVERAGE_COLUMNS if c != "theta0_deg"]]]
+    write_csv(table.round(4), out_csv)
+    return df
+
+
+# ----------------------------------------------------------------------------------------
+# figure
+
+
+def band_figure(uq: pd.DataFrame, gt: pd.DataFrame, settings: UQSettings, out: str | Path,
+                mean_traj: pd.DataFrame | None = None) -> None:
+    """Rod configurations at four time instants: 95 % band (normal offsets of the sampled
+    shapes from the median shape, lo-hi percentiles) shaded, median solid red, ground truth
+    dashed blue (paper Fig. combined_shapes, right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .io import atomic_path
+
+    lo, hi = settings.band_pct
+    arr, qlo, qmed, qhi, _ = band_arrays(uq, ("x", "y"), lo, hi)
+    t = np.sort(uq["t"].unique())
+    gt = gt.sort_values(["t", "node"])
+    n_nodes = arr.shape[2]
+    g = gt[["x", "y"]].to_numpy().reshape(len(t), n_nodes, 2)
+    idx = [int(round(f * (len(t) - 1))) for f in settings.figure_time_fractions]
+    fig, ax = plt.subplots(figsize=(6.4, 5.2))
+    colors = plt.cm.viridis(np.linspace(0.0, 0.85, len(idx)))
+    for c, k in zip(colors, idx, strict=True):
+        med = qmed[k]  # (n_nodes, 2) median shape
+        tan = np.gradient(med, axis=0)
+        tan /= np.maximum(np.linalg.norm(tan, axis=1, keepdims=True), 1e-12)
+        nrm = np.stack([-tan[:, 1], tan[:, 0]], axis=1)
+        off = np.einsum("snk,nk->sn", arr[:, k] - med, nrm)  # (S, n_nodes) normal offsets
+        o_lo, o_hi = np.percentile(off, [lo, hi], axis=0)
+        # tip: extend the band along the tangent by the tangential spread of the tip samples
+        tang = np.einsum("sk,k->s", arr[:, k, -1] - med[-1], tan[-1])
+        t_hi = max(float(np.percentile(tang, hi)), 0.0)
+        upper = med + o_hi[:, None] * nrm
+        lower = med + o_lo[:, None] * nrm
+        poly = np.vstack([upper, med[-1] + t_hi * tan[-1], lower[::-1]])
+        ax.fill(poly[:, 0], poly[:, 1], color=c, alpha=0.3, lw=0)
+        ax.plot(med[:, 0], med[:, 1], "-", color="tab:red", lw=1.6)
+        ax.plot(g[k, :, 0], g[k, :, 1], "--", color="tab:blue", lw=1.6)
+        ax.annotate(f"t = {t[k]:.2f} s", med[-1], textcoords="offset points", xytext=(4, 4),
+                    fontsize=8, color=c)
+    ax.plot([], [], "-", color="tab:red", label=f"CR-GPR median of S = {arr.shape[0]} samples")
+    ax.plot([], [], "--", color="tab:blue", label="ground truth")
+    ax.fill([], [], color="gray", alpha=0.3, label=f"{hi - lo:g} % band ({lo:g}-{hi:g} percentiles)")
+    ax.plot(0, 0, "ks", ms=5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"theta0 = {uq['theta0_deg'].iloc[0]:g} deg: rod shapes with 95 % CI (RFF samples)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    with atomic_path(out, ".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=150)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------------------
+# Snakemake entry points
+
+
+def samples_rule(cfg: dict[str, Any], models: list[str], samples: list[str], diagnostics: str) -> None:
+    """Rule ``uq_samples``: ``models`` are the .npz files of results/models/{prefilter}/."""
+    settings = UQSettings.from_config(cfg)
+    stems = {Path(m).stem: str(Path(m).with_suffix("")) for m in models}
+    out_dir = Path(samples[0]).parent
+    expected = {Path(s).stem for s in samples}
+    if set(stems) != expected:
+        raise ValueError(f"uq_samples: models {sorted(stems)} do not match outputs {sorted(expected)}")
+    sample_models(stems, settings, cfg, out_dir, diagnostics)
+
+
+def coverage_rule(cfg: dict[str, Any], uq_paths: list[str], gt_paths: list[str], out: str,
+                  table: str) -> None:
+    """Rule ``uq_coverage``."""
+    settings = UQSettings.from_config(cfg)
+    uq_map = {int(Path(p).stem): p for p in uq_paths}
+    gt_map = {int(Path(p).stem): p for p in gt_paths}
+    df = coverage_table(uq_map, gt_map, settings, out, table)
+    log.info("coverage:\n%s", df.to_string())
+
+
+def figure_rule(cfg: dict[str, Any], uq_path: str, gt_path: str, out: str) -> None:
+    """Rule ``uq_figure``."""
+    settings = UQSettings.from_config(cfg)
+    uq = read_parquet(uq_path, required=UQ_COLUMNS)
+    gt = read_parquet(gt_path, required=TRAJECTORY_COLUMNS)
+    band_figure(uq, gt, settings, out)
