@@ -21,6 +21,7 @@ from crgpr.rff import (
     pathwise_samples,
     pivoted_cholesky_inducing,
     posterior_from_gp,
+    sparse_posterior,
     weight_space_samples,
 )
 
@@ -147,3 +148,26 @@ def test_from_fitted_gp_matches_gp_predictions() -> None:
         from crgpr.gp import fit_gp as fg
 
         posterior_from_gp(fg(X, y, kernel="matern52", n_restarts=0), "m52")
+
+
+@pytest.mark.parametrize("basis", ["none", "pure_quadratic"])
+def test_sparse_pathwise_samples(basis: str) -> None:
+    """DTC posterior on inducing inputs: equals the exact posterior when Z = X, converges as M
+    grows, and its compressed joint samples have the DTC mean and variance (Monte Carlo)."""
+    spec, xt = _problem(basis, True)
+    post = exact_posterior(spec)
+    mean, var = post.mean_var(xt)
+    m_all, v_all = sparse_posterior(spec, spec.Xs).mean_var(xt)
+    np.testing.assert_allclose(m_all, mean, atol=1e-4 * np.sqrt(var).max())
+    np.testing.assert_allclose(v_all, var, rtol=1e-4)
+    errs = []
+    for M in (10, 30, 60):
+        sp = sparse_posterior(spec, spec.Xs[pivoted_cholesky_inducing(spec, M)])
+        m_s, v_s = sp.mean_var(xt)
+        errs.append(np.abs(m_s - mean).max() / np.sqrt(var).max())
+    assert errs[0] > errs[1] > errs[2]
+    S = 3000
+    comp = sp.sample(S, 3000, np.random.default_rng(0))
+    f = comp(np.broadcast_to(xt, (S, *xt.shape)))
+    assert np.all(np.abs(f.mean(0) - m_s) < 5.0 * np.sqrt(v_s / S))
+    assert np.all(np.abs(f.var(0, ddof=1) / v_s - 1.0) < 0.15)
