@@ -24,6 +24,7 @@ check_config(config, "config")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/ground_truth.smk"
+include: "workflow/rules/baselines.smk"
 
 
 rule all:
