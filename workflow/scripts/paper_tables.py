@@ -1,0 +1,6 @@
+from crgpr import paper
+from crgpr.smk import run_rule
+
+i, o = snakemake.input, snakemake.output
+run_rule(snakemake, paper.build, values_path=i.values, accuracy=i.accuracy, hyper=i.hyper, timing=i.timing,
+         uq=i.uq, out_csv=o.csv, out_md=o.md, out_claims=o.claims)
