@@ -108,7 +108,8 @@ def test_sample_models_from_saved_gp(tmp_path) -> None:
     y = 3.0 + np.sin(2.0 * X[:, 0]) * X[:, 1] + 0.01 * rng.standard_normal(150)
     gp = fit_gp(X, y, kernel="ard_se", basis="pure_quadratic", n_restarts=0, seed=0)
     gp.save(tmp_path / "m" / "q_x")
-    spec = load_gp_spec(tmp_path / "m" / "q_x", "q_x")
+    spec, Z, grid = load_gp_spec(tmp_path / "m" / "q_x", "q_x")
+    assert Z is None and grid is None
     np.testing.assert_allclose(spec.Xs, gp.standardise_x(X))
     res = sample_models({"q_x": str(tmp_path / "m" / "q_x")}, settings, cfg, tmp_path / "s",
                         tmp_path / "s" / "diag.json")

@@ -46,7 +46,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
+from . import features as ft
 from .io import read_parquet, write_csv, write_json, write_npz, write_parquet
 from .rff import (
     CompressedSamples,
@@ -57,6 +59,7 @@ from .rff import (
     sparse_posterior,
 )
 from .rff import compress as compress_samples
+from .rod import free_mask, node_weights, straight_rod
 from .simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
@@ -104,6 +107,73 @@ class UQSettings:
         return s
 
 
+@dataclass
+class TabulatedSamples:
+    """S samples of a 1D GP tabulated on a grid (linear interpolation, constant beyond the
+    ends), the same representation the CR-GPR rollout uses for the momentum models' mean
+    (gradient_models.py): ``grid`` (G,), ``values`` (S, G) in output units."""
+
+    grid: np.ndarray
+    values: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return self.values.shape[0]
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"kind": np.array("tabulated"), "grid": self.grid, "values": self.values}
+
+    def __post_init__(self) -> None:
+        self.grid = np.ascontiguousarray(self.grid, dtype=float)
+        self.values = np.ascontiguousarray(self.values, dtype=float)
+        dg = np.diff(self.grid)
+        if not np.allclose(dg, dg[0], rtol=1e-9, atol=0.0) or dg[0] <= 0:
+            raise ValueError("TabulatedSamples: the grid must be uniform and increasing")
+
+    def _eval(self, x: np.ndarray, slope: bool) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        x = x[..., 0] if (x.ndim >= 3 and x.shape[-1] == 1) else x
+        if x.shape[0] != self.n_samples:
+            raise ValueError(f"expected inputs with S = {self.n_samples} rows first, got {x.shape}")
+        flat = np.ascontiguousarray(x.reshape(self.n_samples, -1))
+        out = np.empty_like(flat)
+        _interp_uniform(flat, self.grid[0], self.grid[1] - self.grid[0], self.values, slope, out)
+        return out.reshape(x.shape)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Sample s at x[s]: x (S, ...) or (S, ..., 1) -> (S, ...); 0 (the prior mean) outside
+        the grid, as the CR-GPR rollout's tables (learned.Approx)."""
+        return self._eval(x, False)
+
+    def slope(self, x: np.ndarray) -> np.ndarray:
+        """Slope of each sample's interpolant at x[s] (0 outside), for the damping flow."""
+        return self._eval(x, True)
+
+
+@njit(cache=True)
+def _interp_uniform(x, g0, dg, values, slope, out):
+    S, m = x.shape
+    G = values.shape[1]
+    for s in range(S):
+        for i in range(m):
+            r = (x[s, i] - g0) / dg
+            if not (r >= 0.0 and r <= G - 1):
+                out[s, i] = 0.0
+                continue
+            j = min(int(r), G - 2)
+            f = r - j
+            if slope:
+                out[s, i] = (values[s, j + 1] - values[s, j]) / dg
+            else:
+                out[s, i] = values[s, j] + f * (values[s, j + 1] - values[s, j])
+
+
+def samples_from_arrays(arr: dict[str, np.ndarray]) -> CompressedSamples | TabulatedSamples:
+    if "kind" in arr and str(arr["kind"]) == "tabulated":
+        return TabulatedSamples(arr["grid"], arr["values"])
+    return CompressedSamples.from_arrays(arr)
+
+
 def uq_seed(cfg: dict[str, Any], model_index: int) -> int:
     """Seed of the samples of one gradient model, derived from the global ``seed``."""
     return int(np.random.SeedSequence([int(cfg["seed"]), 5, model_index]).generate_state(1)[0])
@@ -113,9 +183,11 @@ def uq_seed(cfg: dict[str, Any], model_index: int) -> int:
 # stage 1: samples of every gradient GP
 
 
-def load_gp_spec(stem: str | Path, name: str) -> GPSpec:
+def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None, np.ndarray | None]:
     """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GPSpec without the
-    O(n^3) factorisation ``GP.load`` performs."""
+    O(n^3) factorisation ``GP.load`` performs; also return the standardised inducing inputs
+    ``dtc_Z`` of the rollout's DTC mean and the 1D table grid ``table_x`` (gradient_models.py)
+    when the file has them."""
     stem = Path(stem)
     npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
     for p in (npz, js):
@@ -134,45 +206,80 @@ def load_gp_spec(stem: str | Path, name: str) -> GPSpec:
     y_mean = float(np.ravel(arr["y_mean"])[0])
     y_scale = float(np.ravel(arr["y_scale"])[0])
     x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
-    return GPSpec((X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
+    spec = GPSpec((X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
                   np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)),
                   float(meta["sigma_n_std"]), str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+    Z = arr.get("dtc_Z")
+    Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
+    grid = arr.get("table_x")
+    return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
-def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int
-                       ) -> tuple[CompressedSamples, dict[str, Any]]:
-    """S compressed joint samples of one GP plus diagnostics (approximation error against the
-    exact posterior at ``check_points`` training inputs when n <= exact_check_max_n)."""
+def _subset(spec: GPSpec, idx: np.ndarray) -> GPSpec:
+    return GPSpec(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.lengthscales, spec.sigma_n, spec.basis,
+                  spec.x_mean, spec.x_std, spec.y_mean, spec.y_scale, spec.name)
+
+
+def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
+                       grid: np.ndarray | None = None
+                       ) -> tuple[CompressedSamples | TabulatedSamples, dict[str, Any]]:
+    """S compressed joint samples of one GP plus diagnostics.
+
+    Inducing inputs: ``Z`` (standardised) if given, i.e. the rollout's own DTC inducing set, so
+    that the samples are centred on exactly the mean model the CR-GPR rollout integrates; else
+    M = uq.inducing by pivoted Cholesky. Diagnostics: the sampler's mean and sd against the
+    exact GP posterior at ``check_points`` training inputs; for n > exact_check_max_n both are
+    conditioned on a random subset of exact_check_max_n points (as gradient_models.py does).
+
+    1D models (the momentum GPs, n ~ 1000) with a ``grid``: exact pathwise samples tabulated on
+    the grid (the rollout's own representation of their mean); the diagnostics then measure
+    the interpolation error of the tabulated samples against the exact samples.
+    """
+    if spec.dim == 1 and grid is not None:
+        return _tabulated_samples(spec, settings, seed, grid)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    idx = pivoted_cholesky_inducing(spec, settings.inducing)
-    Z = spec.Xs[idx]
-    info: dict[str, Any] = {"model": spec.name, "n": int(spec.Xs.shape[0]), "dim": spec.dim,
-                            "basis": spec.basis, "inducing": int(len(idx)), "sampler": settings.sampler,
-                            "n_features": settings.n_features, "n_samples": settings.n_samples,
-                            "seed": seed}
     n = spec.Xs.shape[0]
-    exact_ok = n <= settings.exact_check_max_n
-    post = exact_posterior(spec) if (exact_ok or settings.sampler == "exact_pathwise") else None
+    if Z is None:
+        idx = pivoted_cholesky_inducing(spec, settings.inducing)
+        Z, z_src = spec.Xs[idx], "pivoted Cholesky of K_XX"
+    else:
+        idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
+    info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
+                            "inducing": int(Z.shape[0]), "inducing_source": z_src,
+                            "sampler": settings.sampler, "n_features": settings.n_features,
+                            "n_samples": settings.n_samples, "seed": seed}
     if settings.sampler == "sparse_pathwise":
         sp = sparse_posterior(spec, Z)
         comp = sp.sample(settings.n_samples, settings.n_features, rng)
     else:
-        smp = pathwise_samples(post, settings.n_samples, settings.n_features, rng)
+        if idx is None:  # compression needs training-point indices: match Z to rows of X
+            idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
+        smp = pathwise_samples(exact_posterior(spec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
     info["sampling_s"] = time.perf_counter() - t0
-    if post is not None:
-        chk = np.random.default_rng(seed + 1).choice(n, size=min(settings.check_points, n), replace=False)
-        xr = spec.Xs[chk] * spec.x_std + spec.x_mean
+    # diagnostics against the exact posterior
+    crng = np.random.default_rng(seed + 1)
+    limit = settings.exact_check_max_n
+    if limit > 0:
+        sub = np.arange(n) if n <= limit else np.sort(crng.choice(n, size=limit, replace=False))
+        cspec = spec if n <= limit else _subset(spec, sub)
+        info["exact_check"] = ("all n points" if n <= limit else
+                               f"exact and sparse both conditioned on a random subset of {limit} points")
+        post = exact_posterior(cspec)
+        chk = crng.choice(cspec.Xs.shape[0], size=min(settings.check_points, cspec.Xs.shape[0]),
+                          replace=False)
+        xr = cspec.Xs[chk] * spec.x_std + spec.x_mean
         m_ex, v_ex = post.mean_var(xr)
         sd_ex = np.sqrt(np.maximum(v_ex, 1e-300))
         if settings.sampler == "sparse_pathwise":
-            m_ap, v_ap = sp.mean_var(xr)
+            m_ap, v_ap = sparse_posterior(cspec, Z).mean_var(xr)
+            sd_ap = np.sqrt(np.maximum(v_ap, 0.0))
             info["mean_err_max_over_sd"] = float(np.max(np.abs(m_ap - m_ex) / sd_ex))
             info["mean_err_rms_over_sd"] = float(np.sqrt(np.mean(((m_ap - m_ex) / sd_ex) ** 2)))
-            info["sd_ratio_median"] = float(np.median(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
-            info["sd_ratio_min"] = float(np.min(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
-            info["sd_ratio_max"] = float(np.max(np.sqrt(np.maximum(v_ap, 0)) / sd_ex))
+            info["sd_ratio_median"] = float(np.median(sd_ap / sd_ex))
+            info["sd_ratio_min"] = float(np.min(sd_ap / sd_ex))
+            info["sd_ratio_max"] = float(np.max(sd_ap / sd_ex))
         else:
             exact_f = smp(xr)
             approx_f = comp(np.broadcast_to(xr, (comp.n_samples, *xr.shape)))
@@ -180,22 +287,48 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int
             info["compression_err_max_over_sd"] = float(np.abs(err).max())
             info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
         info["exact_sd_median"] = float(np.median(sd_ex))
-        info["y_scale"] = spec.y_scale
+        info["sigma_n"] = spec.sigma_n * spec.y_scale
     else:
-        info["exact_check"] = f"skipped: n = {n} > uq.exact_check_max_n = {settings.exact_check_max_n}"
+        info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
+    info["seconds"] = time.perf_counter() - t0
     log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
     return comp, info
 
 
+def _tabulated_samples(spec: GPSpec, settings: UQSettings, seed: int, grid: np.ndarray
+                       ) -> tuple[TabulatedSamples, dict[str, Any]]:
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    post = exact_posterior(spec)
+    smp = pathwise_samples(post, settings.n_samples, settings.n_features, rng)
+    grid = np.asarray(grid, dtype=float).ravel()
+    tab = TabulatedSamples(grid, np.hstack([smp(grid[i:i + 2048, None]) for i in range(0, grid.size, 2048)]))
+    crng = np.random.default_rng(seed + 1)
+    xc = crng.uniform(grid[0], grid[-1], settings.check_points)[:, None]
+    _, var = post.mean_var(xc)
+    err = (tab(np.broadcast_to(xc, (tab.n_samples, *xc.shape))) - smp(xc)) / np.sqrt(np.maximum(var, 1e-300))
+    info = {"model": spec.name, "n": int(spec.Xs.shape[0]), "dim": 1, "basis": spec.basis,
+            "sampler": "exact_pathwise, tabulated", "grid_points": int(grid.size),
+            "n_features": settings.n_features, "n_samples": settings.n_samples, "seed": seed,
+            "exact_check": "interpolation error of the tabulated samples vs the exact samples",
+            "interp_err_max_over_sd": float(np.abs(err).max()),
+            "interp_err_rms_over_sd": float(np.sqrt(np.mean(err**2))),
+            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.y_scale,
+            "seconds": time.perf_counter() - t0}
+    log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
+    return tab, info
+
+
 def sample_models(model_stems: dict[str, str], settings: UQSettings, cfg: dict[str, Any],
-                  out_dir: str | Path, diagnostics_out: str | Path) -> dict[str, CompressedSamples]:
+                  out_dir: str | Path, diagnostics_out: str | Path
+                  ) -> dict[str, CompressedSamples | TabulatedSamples]:
     """Stage ``uq_samples``: samples of every model, one npz each, plus diagnostics JSON."""
     out_dir = Path(out_dir)
     diags = {}
     result = {}
     for i, (name, stem) in enumerate(model_stems.items()):
-        spec = load_gp_spec(stem, name)
-        comp, info = draw_model_samples(spec, settings, uq_seed(cfg, i))
+        spec, Z, grid = load_gp_spec(stem, name)
+        comp, info = draw_model_samples(spec, settings, uq_seed(cfg, i), Z, grid)
         write_npz(out_dir / f"{name}.npz", **comp.to_arrays())
         diags[name] = info
         result[name] = comp
@@ -203,10 +336,148 @@ def sample_models(model_stems: dict[str, str], settings: UQSettings, cfg: dict[s
     return result
 
 
-def load_samples(paths: dict[str, str | Path]) -> dict[str, CompressedSamples]:
+def load_samples(paths: dict[str, str | Path]) -> dict[str, CompressedSamples | TabulatedSamples]:
     from .io import load_npz
 
-    return {name: CompressedSamples.from_arrays(load_npz(p)) for name, p in paths.items()}
+    return {name: samples_from_arrays(load_npz(p)) for name, p in paths.items()}
+
+
+# ----------------------------------------------------------------------------------------
+# stage 2: the sampled H_z through the rollout, all samples as one batch
+
+MOMENTUM = ("dH_dp_x", "dH_dp_y", "dH_dp_theta")
+
+
+class SampledRod:
+    """S sampled H_z of the paper's six GPs, evaluated for a batch of S rods (sample s on rod s).
+
+    Same assembly as the CR-GPR mean model (learned.LearnedRod, features 'paper'): nodal
+    forces -dH/dx_i = (q_x,i - q_x,i-1) / (w_i ds) from the segment GPs q_x, q_y, -dH/dtheta_i
+    from GPR 3 at nodes 1..N, dq/dt = H_p(p) from GPR 4-6, gravity as the input G u. States
+    carry a leading sample axis: q, p (S, N+1, 3).
+    """
+
+    def __init__(self, samples: dict[str, Any], params: Any, theta_center: float | None):
+        missing = [m for m in ("q_x", "q_y", "dH_dtheta", *MOMENTUM) if m not in samples]
+        if missing:
+            raise ValueError(f"UQ samples missing for model(s) {missing}")
+        sizes = {m: samples[m].n_samples for m in samples}
+        if len(set(sizes.values())) != 1:
+            raise ValueError(f"UQ samples have different S per model: {sizes}")
+        self.S = next(iter(sizes.values()))
+        self.smp = samples
+        self.params = params
+        self.center = theta_center
+        self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
+        self.active = np.arange(self.S)  # samples still integrated (divergence drops some)
+        self.last_q: np.ndarray | None = None
+        self.last_p: np.ndarray | None = None
+
+    def select(self, keep: np.ndarray) -> None:
+        """Integrate only the samples ``keep`` (indices into the original S) from now on."""
+        self.active = np.asarray(keep, dtype=int)
+
+    def _call(self, name: str, X: np.ndarray, slope: bool = False) -> np.ndarray:
+        smp = self.smp[name]
+        full = np.zeros((self.S, *X.shape[1:]))
+        full[self.active] = X
+        out = smp.slope(full) if slope else smp(full)
+        return out[self.active]
+
+    def force(self, q: np.ndarray) -> np.ndarray:
+        """-H_q + G u per unit length (S', N+1, 3)."""
+        self.last_q = q
+        P = self.params
+        x, y, th = q[..., 0], q[..., 1], q[..., 2]
+        out = np.zeros(q.shape)
+        Xq = ft.paper_q_features(x, y, th, P.ds, self.center)
+        out[..., 0] = ft.forces_from_q(self._call("q_x", Xq), P)
+        out[..., 1] = ft.forces_from_q(self._call("q_y", Xq), P)
+        out[..., 1:, 2] = -self._call("dH_dtheta", ft.paper_theta_features(x, y, th, P.ds, self.center))
+        return out + self.gu
+
+    def velocity(self, p: np.ndarray) -> np.ndarray:
+        self.last_p = p
+        return np.stack([self._call(m, p[..., k]) for k, m in enumerate(MOMENTUM)], axis=-1)
+
+    def velocity_slope(self, p: np.ndarray) -> np.ndarray:
+        return np.stack([self._call(m, p[..., k], slope=True) for k, m in enumerate(MOMENTUM)], axis=-1)
+
+
+def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_restarts: int = 3
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+    """Integrate all S sampled models at once with ``integrator.run_hamiltonian`` (the CR-GPR
+    rollout's scheme, dt and boundary conditions). A sample that diverges is recorded and
+    dropped, and the remaining batch is integrated again from t = 0 (never silently kept).
+    Returns t (n_t,), q and p (S', n_t, N+1, 3) of the surviving samples, their indices, and
+    the divergence records."""
+    from .integrator import MAX_SPEED, SimulationDiverged, run_hamiltonian
+
+    P = rod.params
+    q0 = straight_rod(np.radians(theta0_deg), P)
+    free = free_mask(P)
+    wds = node_weights(P.N) * P.ds
+    keep = np.arange(rod.S)
+    diverged: list[dict[str, Any]] = []
+    n_nodes = P.N + 1
+    for _ in range(max_restarts + 1):
+        rod.select(keep)
+        S = len(keep)
+        shape = (S, n_nodes, 3)
+
+        # run_hamiltonian integrates one (n, 3) state: the S rods are stacked along its node axis
+        # (S (N+1) rows), and the model sees them with the sample axis restored.
+        def force(qf: np.ndarray, shape=shape) -> np.ndarray:
+            return rod.force(qf.reshape(shape)).reshape(-1, 3)
+
+        def velocity(pf: np.ndarray, shape=shape) -> np.ndarray:
+            return rod.velocity(pf.reshape(shape)).reshape(-1, 3)
+
+        def velocity_slope(pf: np.ndarray, shape=shape) -> np.ndarray:
+            return rod.velocity_slope(pf.reshape(shape)).reshape(-1, 3)
+
+        qb = np.tile(q0, (S, 1))
+        try:
+            out = run_hamiltonian(qb, np.zeros_like(qb), force, velocity, np.tile(free, (S, 1)), P.zeta,
+                                  settings.dt, settings.n_steps, settings.record_every, np.tile(wds, S),
+                                  what=f"UQ rollout at theta0 = {theta0_deg:g} deg",
+                                  velocity_slope=velocity_slope)
+        except SimulationDiverged as exc:
+            q, p = rod.last_q, rod.last_p
+            v = rod.velocity(p) if p is not None else np.full_like(q, np.nan)
+            bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(v).all(axis=(1, 2))
+                    & (np.abs(v) < MAX_SPEED).all(axis=(1, 2)) & (np.abs(q) < 1.0e6).all(axis=(1, 2)))
+            if not bad.any():
+                raise
+            for j in np.nonzero(bad)[0]:
+                diverged.append({"sample": int(keep[j]), "t_s": exc.t, "step": exc.step})
+                log.warning("sample %d diverged at t = %.4g s; dropped, batch restarted", keep[j], exc.t)
+            keep = keep[~bad]
+            if len(keep) < 2:
+                raise SimulationDiverged(f"UQ rollout at {theta0_deg:g} deg: fewer than 2 samples left "
+                                         f"({diverged})", exc.step, exc.t, exc.node) from exc
+            continue
+        n_t = out.t.size
+        q = np.moveaxis(out.q.reshape(n_t, S, n_nodes, 3), 1, 0)  # (S, n_t, N+1, 3)
+        p = np.moveaxis(out.v.reshape(n_t, S, n_nodes, 3), 1, 0)
+        return out.t, q, p, keep, diverged
+    raise RuntimeError(f"UQ rollout at {theta0_deg:g} deg: too many divergence restarts ({diverged})")
+
+
+def uq_frame(theta0_deg: float, t: np.ndarray, q: np.ndarray, p: np.ndarray, samples: np.ndarray,
+             ds: float) -> pd.DataFrame:
+    """Tidy table, one row per (sample, t, node), columns ``UQ_COLUMNS``."""
+    S, n_t, n_nodes, _ = q.shape
+    n = S * n_t * n_nodes
+    return pd.DataFrame({
+        "sample": np.repeat(samples.astype(np.int32), n_t * n_nodes),
+        "theta0_deg": np.full(n, float(theta0_deg)),
+        "t": np.tile(np.repeat(t, n_nodes), S),
+        "node": np.tile(np.arange(n_nodes, dtype=np.int32), S * n_t),
+        "s": np.tile(np.arange(n_nodes) * ds, S * n_t),
+        "x": q[..., 0].ravel(), "y": q[..., 1].ravel(), "theta": q[..., 2].ravel(),
+        "p_x": p[..., 0].ravel(), "p_y": p[..., 1].ravel(), "p_theta": p[..., 2].ravel(),
+    })
 
 
 # ----------------------------------------------------------------------------------------
@@ -394,3 +665,30 @@ def figure_rule(cfg: dict[str, Any], uq_path: str, gt_path: str, out: str) -> No
     uq = read_parquet(uq_path, required=UQ_COLUMNS)
     gt = read_parquet(gt_path, required=TRAJECTORY_COLUMNS)
     band_figure(uq, gt, settings, out)
+
+
+def rollout_rule(cfg: dict[str, Any], angle: int, samples: list[str], models: list[str], out: str) -> None:
+    """Rule ``uq_rollout``: S sampled models through the rollout at one angle."""
+    from .config import rod_params, sim_settings
+
+    settings = UQSettings.from_config(cfg)
+    params, sim = rod_params(cfg), sim_settings(cfg)
+    smp = load_samples({Path(p).stem: p for p in samples})
+    metas = {Path(m).stem: json.loads(Path(m).read_text()) for m in models}
+    centers = {metas[m].get("theta_center") for m in ("q_x", "q_y", "dH_dtheta") if m in metas}
+    if len(centers) != 1:
+        raise ValueError(f"uq_rollout: q_x, q_y, dH_dtheta have different theta windows {centers}")
+    if metas.get("q_x", {}).get("features") is not None and list(metas["q_x"]["features"]) != list(
+            ft.PAPER_Q_FEATURES):
+        raise ValueError("uq_rollout: the sampled models do not use the paper's features")
+    rod = SampledRod(smp, params, centers.pop())
+    t0 = time.perf_counter()
+    t, q, p, keep, diverged = rollout_samples(rod, float(angle), sim)
+    secs = time.perf_counter() - t0
+    log.info("theta0 = %d deg: %d samples integrated in %.1f s (%d diverged)", angle, len(keep), secs,
+             len(diverged))
+    meta = {"kind": "uq_rollout", "theta0_deg": angle, "method": settings.method,
+            "n_samples": settings.n_samples, "n_diverged": len(diverged), "diverged": diverged,
+            "seconds_rollout": secs, "settings": settings.__dict__, "rod": params.to_dict(),
+            "simulation": sim.to_dict(), "seed": cfg["seed"]}
+    write_parquet(uq_frame(float(angle), t, q, p, keep, params.ds), out, meta)

@@ -1,0 +1,106 @@
+# Trajectory-level UQ (issue 5; paper Sec. III "Uncertainty Quantification via RFF Sampling",
+# Sec. V "Uncertainty Quantification Results"): S joint posterior samples of every gradient GP,
+# propagated through the rollout per angle, band coverage of the ground truth, band figure.
+
+UQ = config["uq"]
+UQ_PREFILTER = config["rollouts"]["methods"][UQ["method"]]["prefilter"]
+UQ_MODELS = list(config["gradient_models"]["models"])
+UQ_LIB = lib("config", "gp", "rff", "uq", "smk")
+
+
+rule uq_samples:
+    input:
+        code=UQ_LIB,
+        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
+        meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+    output:
+        samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
+        diagnostics=f"{RESULTS}/uq/samples/diagnostics.json",
+    log:
+        "logs/uq/samples.log",
+    benchmark:
+        "benchmarks/uq/samples.tsv"
+    threads: 1
+    resources:
+        mem_mb=6000,
+        runtime=20,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_samples.py"
+
+
+rule uq_rollout:
+    input:
+        code=UQ_LIB + lib("rod", "integrator", "simulate", "features", "learned"),
+        samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
+        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+    output:
+        f"{RESULTS}/uq/{{angle}}.parquet",
+    wildcard_constraints:
+        angle=r"-?\d+",
+    log:
+        "logs/uq/rollout/{angle}.log",
+    benchmark:
+        "benchmarks/uq/rollout/{angle}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=15,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_rollout.py"
+
+
+rule uq_coverage:
+    input:
+        code=UQ_LIB,
+        uq=expand(f"{RESULTS}/uq/{{angle}}.parquet", angle=UQ["angles_deg"]),
+        ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
+    output:
+        coverage=f"{RESULTS}/uq/coverage.parquet",
+        table=f"{RESULTS}/tables/uq_coverage.csv",
+    log:
+        "logs/uq/coverage.log",
+    benchmark:
+        "benchmarks/uq/coverage.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_coverage.py"
+
+
+rule uq_figure:
+    input:
+        code=UQ_LIB,
+        uq=f"{RESULTS}/uq/{{angle}}.parquet",
+        ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
+    output:
+        f"{RESULTS}/figures/uq_band_{{angle}}.png",
+    wildcard_constraints:
+        angle=r"-?\d+",
+    log:
+        "logs/uq/figure/{angle}.log",
+    benchmark:
+        "benchmarks/uq/figure/{angle}.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_figure.py"
+
+
+ALL_TARGETS.extend(
+    [
+        f"{RESULTS}/tables/uq_coverage.csv",
+        f"{RESULTS}/figures/uq_band_{UQ['figure_angle_deg']}.png",
+    ]
+)

@@ -1,0 +1,6 @@
+from crgpr import uq
+from crgpr.smk import run_rule
+
+run_rule(snakemake, uq.coverage_rule, cfg=snakemake.config, uq_paths=list(snakemake.input.uq),
+         gt_paths=list(snakemake.input.ground_truth), out=snakemake.output.coverage,
+         table=snakemake.output.table)
