@@ -7,10 +7,11 @@ resultants and no spatial derivative of a learned flux: each output is a free fu
 
     f = [theta_i, theta_{i-1}, theta_{i+1}, d2theta/ds2, dx/ds, dy/ds, p_x, p_y, p_theta]_i,
 
-the union of the local features of CR-GPR's six gradient GPs (paper GPR 1-6). At the free tip
-the missing neighbour is the mirror ghost theta_{N+1} = theta_{N-1} (the natural condition
-m = 0). Spatial derivatives use ``crgpr.prefilter.spatial_derivatives`` on the nodal values,
-both for training (on the prefiltered 85 deg data) and during the rollout. Kernel family and
+the union of the local features of CR-GPR's six gradient GPs (paper GPR 1-6), computed by
+CR-GPR's own ``crgpr.features.paper_theta_features`` (nodal stencils, free-tip ghost
+theta_{N+1} = theta_{N-1}, angles shifted into the 2 pi window centred on the training range
+when ``gradient_models.theta_wrap`` is on) plus the nodal momenta, both for training (on the
+prefiltered 85 deg data, the same data set E as CR-GPR) and during the rollout. Kernel family and
 fitting are CR-GPR's: ARD-SE with an explicit basis, hyperparameters by maximising the log
 marginal likelihood (``crgpr.gp.fit_gp``) on a seeded random subset, then conditioned on
 ``n_train`` points.
@@ -45,12 +46,13 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
+from . import features as ft
 from .config import ConfigError, rod_params, sim_settings
 from .gp import GP, basis_matrix_std, fit_gp
 from .integrator import MAX_SPEED, SimulationDiverged
 from .io import read_parquet, write_json, write_parquet
 from .params import RodParams, SimSettings
-from .prefilter import D1_COLUMNS, PREFILTER_COLUMNS, spatial_derivatives
+from .prefilter import D1_COLUMNS, PREFILTER_COLUMNS
 from .rod import STATE_NAMES, straight_rod
 from .simulate import TRAJECTORY_COLUMNS
 
@@ -68,17 +70,22 @@ def blackbox_settings(cfg: dict[str, Any]) -> dict[str, Any]:
         raise ConfigError("config: missing section baselines.blackbox_gp") from exc
 
 
-def node_features(q: np.ndarray, p: np.ndarray, ds: float) -> np.ndarray:
-    """Local features (..., N+1, 9) from nodal q, p (..., N+1, 3); rows of node 0 are unused."""
-    x, y, th = q[..., 0], q[..., 1], q[..., 2]
-    xs, ys, thss = spatial_derivatives(x, y, th, ds)
-    prev = np.concatenate([th[..., :1], th[..., :-1]], axis=-1)
-    nxt = np.concatenate([th[..., 1:], th[..., -2:-1]], axis=-1)  # mirror ghost at the tip
-    return np.stack([th, prev, nxt, thss, xs, ys, p[..., 0], p[..., 1], p[..., 2]], axis=-1)
+def node_features(q: np.ndarray, p: np.ndarray, ds: float, center: float | None) -> np.ndarray:
+    """Local features (..., N, 9) of the free nodes 1..N from nodal q, p (..., N+1, 3)."""
+    geo = ft.paper_theta_features(q[..., 0], q[..., 1], q[..., 2], ds, center)
+    return np.concatenate([geo, p[..., 1:, :]], axis=-1)
 
 
-def training_set(prefiltered: pd.DataFrame, params: RodParams) -> tuple[np.ndarray, np.ndarray]:
-    """Features (n, 9) and dz/dt targets (n, 6) of the free nodes of a prefilter table."""
+def theta_center(cfg: dict[str, Any], theta: np.ndarray) -> float | None:
+    """CR-GPR's angle window centre (middle of the training range of theta), if wrapping is on."""
+    wrap = bool(cfg.get("gradient_models", {}).get("theta_wrap", False))
+    th = theta[:, 1:]
+    return 0.5 * (float(th.min()) + float(th.max())) if wrap else None
+
+
+def training_set(prefiltered: pd.DataFrame, params: RodParams, cfg: dict[str, Any] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; angle centre."""
     df = prefiltered.sort_values(["t", "node"])
     t = np.unique(df["t"].to_numpy())
     n_nodes = int(df["node"].max()) + 1
@@ -88,9 +95,10 @@ def training_set(prefiltered: pd.DataFrame, params: RodParams) -> tuple[np.ndarr
     arr = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in (*STATE_NAMES, *TARGETS)}
     q = np.stack([arr["x"], arr["y"], arr["theta"]], -1)
     p = np.stack([arr["p_x"], arr["p_y"], arr["p_theta"]], -1)
-    F = node_features(q, p, params.ds)[:, 1:].reshape(-1, len(FEATURES))
+    center = theta_center(cfg or {}, arr["theta"])
+    F = node_features(q, p, params.ds, center).reshape(-1, len(FEATURES))
     Y = np.stack([arr[c] for c in TARGETS], -1)[:, 1:].reshape(-1, 6)
-    return F, Y
+    return F, Y, center
 
 
 def fit_blackbox(F: np.ndarray, Y: np.ndarray, settings: dict[str, Any], seed: int) -> list[GP]:
@@ -138,6 +146,8 @@ class FastMean:
         for gp in gps:
             if gp.kernel != "se":
                 raise ConfigError("baselines.blackbox_gp.kernel: the rollout supports 'se' only")
+        for gp in gps:
+            gp.ensure_factorised()  # loaded models factorise lazily
         self.gps = gps
         self.ell = [np.broadcast_to(gp.lengthscales, (gp.dim,)).astype(float) for gp in gps]
         self.Ut = [np.ascontiguousarray(gp.standardise_x(gp.X) / e)
@@ -156,8 +166,8 @@ class FastMean:
         return out
 
 
-def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSettings
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSettings,
+            center: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Integrate the black-box model from the straight rod at rest; (t, q, p, info).
 
     On divergence the remaining records repeat the last plausible state (see module doc).
@@ -173,14 +183,14 @@ def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSe
     vmax = np.array([params.rhoA, params.rhoA, params.rhoI]) * MAX_SPEED
     h = 0.5 * dt
     free = slice(1, None)
-    Fp = fm(node_features(q, p, params.ds)[free], range(3, 6))
+    Fp = fm(node_features(q, p, params.ds, center), range(3, 6))
     info: dict[str, Any] = {"diverged": False, "t_diverged": None, "node_diverged": None,
                             "step_diverged": None}
     r_last = 0
     for k in range(1, n_steps + 1):
         p[free] += h * Fp
-        q[free] += dt * fm(node_features(q, p, params.ds)[free], range(0, 3))
-        Fp = fm(node_features(q, p, params.ds)[free], range(3, 6))
+        q[free] += dt * fm(node_features(q, p, params.ds, center), range(0, 3))
+        Fp = fm(node_features(q, p, params.ds, center), range(3, 6))
         p[free] += h * Fp
         if k % every == 0:
             r = k // every
@@ -208,18 +218,19 @@ def rule_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary: str
     params = rod_params(cfg)
     st = blackbox_settings(cfg)
     df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
-    F, Y = training_set(df, params)
+    F, Y, center = training_set(df, params, cfg)
     seed = int(cfg["seed"]) + 4000
     t0 = time.perf_counter()
     gps = fit_blackbox(F, Y, st, seed)
     out = Path(out_dir)
     rows = []
     for name, gp in zip(TARGETS, gps, strict=True):
-        gp.save(out / name, {"features": list(FEATURES), "target": name, "seed": seed})
+        gp.save(out / name, {"features": list(FEATURES), "target": name, "seed": seed,
+                             "theta_center": center})
         rows.append({"model": name, **gp.hyperparameters(), "fit_seconds": gp.info["fit_seconds"]})
     write_json({"kind": "blackbox_gp", "features": list(FEATURES), "targets": list(TARGETS),
-                "seed": seed, "source": str(prefiltered), "seconds": time.perf_counter() - t0,
-                "settings": st, "models": rows}, summary)
+                "seed": seed, "theta_center": center, "source": str(prefiltered),
+                "seconds": time.perf_counter() - t0, "settings": st, "models": rows}, summary)
 
 
 def load_models(model_dir: str | Path) -> list[GP]:
@@ -232,7 +243,7 @@ def rule_rollout(cfg: dict[str, Any], model_dir: str, summary: str, angle: int, 
     meta = json.loads(Path(summary).read_text())
     gps = load_models(model_dir)
     t0 = time.perf_counter()
-    t, q, p, info = rollout(gps, float(angle), params, settings)
+    t, q, p, info = rollout(gps, float(angle), params, settings, meta["theta_center"])
     n_t, n_nodes, _ = q.shape
     df = pd.DataFrame({
         "theta0_deg": np.full(n_t * n_nodes, float(angle)), "t": np.repeat(t, n_nodes),

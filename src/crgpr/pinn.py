@@ -263,7 +263,7 @@ def derivatives(model: PINN, t: torch.Tensor, s: torch.Tensor, th0: torch.Tensor
         z_t.append(gt)
         z_s.append(gs)
     for k in range(6):
-        (gss,) = torch.autograd.grad(z_s[k].sum(), (s,), create_graph=create_graph)
+        (gss,) = torch.autograd.grad(z_s[k].sum(), (s,), create_graph=create_graph, retain_graph=True)
         z_ss.append(gss)
     return z, torch.stack(z_t, 1), torch.stack(z_s, 1), torch.stack(z_ss, 1)
 

@@ -109,3 +109,32 @@ rule blackbox_rollout:
 
 
 # (blackbox targets join ALL_TARGETS once the prefilter rule of issue 3 is in the tree)
+
+
+rule baselines_table:
+    input:
+        code=lib("baselines"),
+        accuracy=f"{RESULTS}/metrics/accuracy.parquet",
+        rollouts=expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=BASELINE_METHODS,
+                        angle=config["angles"]["test_deg"]),
+        ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        histories=expand(f"{RESULTS}/baselines/pinn/{{variant}}_loss.parquet", variant=PINN_VARIANTS),
+    output:
+        table=f"{RESULTS}/tables/baselines.csv",
+        notes=f"{RESULTS}/tables/baselines_notes.md",
+        figure=f"{RESULTS}/figures/baselines.png",
+    params:
+        methods=BASELINE_METHODS,
+        variants=PINN_VARIANTS,
+    log:
+        "logs/baselines/baselines_table.log",
+    benchmark:
+        "benchmarks/baselines/baselines_table.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/baselines_table.py"

@@ -1,0 +1,10 @@
+from crgpr import baselines
+from crgpr.smk import run_rule
+
+n = len(snakemake.config["angles"]["test_deg"])
+files = list(snakemake.input.rollouts)
+run_rule(snakemake, baselines.rule, cfg=snakemake.config, accuracy=snakemake.input.accuracy,
+         rollouts={m: files[i * n:(i + 1) * n] for i, m in enumerate(snakemake.params.methods)},
+         ground_truth=list(snakemake.input.ground_truth),
+         pinn_histories=dict(zip(snakemake.params.variants, snakemake.input.histories, strict=True)),
+         table=snakemake.output.table, notes=snakemake.output.notes, figure=snakemake.output.figure)
