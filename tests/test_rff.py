@@ -42,27 +42,25 @@ def _problem(basis: str, ard: bool, seed: int = 0, n: int = 120):
 @pytest.mark.parametrize(("basis", "ard"), [("none", False), ("constant", True),
                                              ("pure_quadratic", True)])
 def test_sample_moments_match_exact_posterior(basis: str, ard: bool) -> None:
-    """Many pathwise samples: mean and variance of f equal the exact GP posterior (incl. the
-    basis-coefficient posterior) within Monte Carlo error plus the small RFF bias (D = 4000)."""
+    """Many pathwise samples: mean, variance and covariance of f equal the exact GP posterior
+    (incl. the basis-coefficient posterior) within Monte Carlo error. Each sample has its own
+    RFF draw, so this holds even for few features (D = 64): no RFF bias in the ensemble."""
     spec, xt = _problem(basis, ard)
     post = exact_posterior(spec)
     mean, var = post.mean_var(xt)
-    S = 3000
-    smp = pathwise_samples(post, S, 4000, np.random.default_rng(1))
+    C = post.cov(xt)
+    S = 4000
+    smp = pathwise_samples(post, S, 64, np.random.default_rng(1))
     f = smp(xt)
     sd = np.sqrt(var)
     # mean: MC standard error sd / sqrt(S); 5 standard errors over 12 points
     assert np.all(np.abs(f.mean(0) - mean) < 5.0 * sd / np.sqrt(S))
-    # variance: MC relative error sqrt(2 / S) = 2.6 %, RFF bias with D = 4000 a few %
+    # variance: MC relative standard error sqrt(2 / S) = 2.2 % (Gaussian); 5 of them
     rel = f.var(0, ddof=1) / var - 1.0
-    assert np.all(np.abs(rel) < 0.15), rel
-    # the MC sampler against its own closed-form covariance for these features: MC error only
-    Cf = pathwise_covariance(post, smp.rff, xt)
-    rel_f = f.var(0, ddof=1) / np.diag(Cf) - 1.0
-    assert np.all(np.abs(rel_f) < 5.0 * np.sqrt(2.0 / S)), rel_f
+    assert np.all(np.abs(rel) < 5.0 * np.sqrt(2.0 / S)), rel
     # joint samples: the full covariance, not just the diagonal
     Cs = np.cov(f.T)
-    assert np.abs(Cs - Cf).max() < 6.0 * np.sqrt(2.0 / S) * var.max()
+    assert np.abs(Cs - C).max() < 6.0 * np.sqrt(2.0 / S) * var.max()
 
 
 def test_basis_posterior_is_part_of_the_sample() -> None:
@@ -167,7 +165,32 @@ def test_sparse_pathwise_samples(basis: str) -> None:
         errs.append(np.abs(m_s - mean).max() / np.sqrt(var).max())
     assert errs[0] > errs[1] > errs[2]
     S = 3000
-    comp = sp.sample(S, 3000, np.random.default_rng(0))
+    comp = sp.sample(S, 100, np.random.default_rng(0))
     f = comp(np.broadcast_to(xt, (S, *xt.shape)))
     assert np.all(np.abs(f.mean(0) - m_s) < 5.0 * np.sqrt(v_s / S))
-    assert np.all(np.abs(f.var(0, ddof=1) / v_s - 1.0) < 0.15)
+    assert np.all(np.abs(f.var(0, ddof=1) / v_s - 1.0) < 5.0 * np.sqrt(2.0 / S))
+
+
+def test_compiled_cosine_and_sample_evaluation() -> None:
+    """The polynomial cosine of the compiled RFF sums agrees with libm; compressed samples
+    agree with a direct numpy evaluation of their formula."""
+    from crgpr.rff import _rff_sum, se_kernel
+
+    rng = np.random.default_rng(0)
+    xs = rng.uniform(-3.0, 3.0, (2, 7, 3))
+    omega = rng.standard_normal((2, 50, 3)) * 4.0
+    phase = rng.uniform(0.0, 2 * np.pi, (2, 50))
+    w = rng.standard_normal((2, 50))
+    out = np.empty((2, 7))
+    _rff_sum(xs, omega, phase, w, 0.3, out)
+    ref = 0.3 * np.einsum("sj,smj->sm", w, np.cos(np.einsum("smd,sjd->smj", xs, omega) + phase[:, None]))
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-10)
+    spec, xt = _problem("pure_quadratic", True)
+    comp = sparse_posterior(spec, spec.Xs[:30]).sample(2, 50, rng)
+    x3 = np.broadcast_to(xt, (2, *xt.shape))
+    u = spec.standardise(xt)
+    direct = np.stack([
+        comp.beta[s] @ spec.basis_fn(u).T
+        + np.sqrt(2.0 * comp.sigma_f**2 / 50) * np.cos(u @ comp.omega[s].T + comp.phase[s]) @ comp.w[s]
+        + se_kernel(u, comp.Z, comp.sigma_f, comp.lengthscales) @ comp.a[s] for s in range(2)])
+    np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.y_scale)
