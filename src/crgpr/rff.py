@@ -20,29 +20,37 @@ Choice: pathwise conditioning, not the weight-space posterior the paper writes.
     The paper's weight-space sampler w ~ N(mu_w, Sigma_w) of f = phi(x)^T w replaces the
     kernel by its D-feature approximation everywhere, including in the data fit. With
     n = 8000-19000 training points, sigma_n / sigma_f ~ 1e-3 and D ~ 1e3 features, the
-    D-dimensional posterior is over-determined by the data: its variance collapses
-    ("variance starvation", Wilson et al. 2020 Fig. 1) and its mean carries the RFF
-    approximation error of k. In (*) the RFF only approximate the *prior* sample g_s;
-    the data update uses the exact kernel, so near the data the sample statistics are
-    those of the exact GP, and far from the data they revert to the (RFF) prior, as they
-    should. ``weight_space_samples`` implements the paper's sampler for comparison.
+    D-dimensional posterior is over-determined by the data: its variance collapses away from
+    the data ("variance starvation", Wilson et al. 2020 Fig. 1; ``weight_space_samples`` and
+    tests/test_rff.py show it) and its mean carries the RFF error of k. In (*) the RFF only
+    approximate the *prior* sample g_s; the data update uses the kernel itself, so near the
+    data the samples have the exact posterior statistics and far from it they revert to the
+    prior, as they should. Each sample gets its own RFF draw (``RFFBatch``): then the ensemble
+    covariance of the prior part is exactly k for any D (E[phi phi^T] = k), instead of every
+    sample sharing one draw's O(1 / sqrt(D)) kernel error.
 
-RFF prior (Rahimi & Recht 2007): g_s(x) = phi(x)^T w_s, phi(x) = sqrt(2 sigma_f^2 / D)
-cos(Omega x + b), Omega_j ~ N(0, diag(1 / l^2)), b_j ~ U[0, 2 pi], w_s ~ N(0, I_D) (paper eq.
-in Sec. III). E[phi(x)^T phi(x')] = k(x, x'); the error of one draw is O(1 / sqrt(D)).
+Samples for the rollout (the default, ``SparsePosterior``, "sparse pathwise"): the update
+term k(x, X) K_y^-1 (...) costs O(n) kernel evaluations per point; 10 samples x 26 nodes x
+20000 steps x n ~ 35000 is ~2e11 evaluations, far beyond the budget. The CR-GPR rollout
+(gradient_models.py) already replaces each GP's posterior mean by the DTC / subset-of-
+regressors mean on M = 600 inducing inputs Z fitted to all n points. We condition on the same
+Z: the DTC likelihood y ~ N(H beta + K_XZ K_ZZ^-1 u, sigma_n^2 I) with u ~ N(0, K_ZZ) and a flat
+prior on beta is a Bayesian linear model in (beta, u) (O(n M^2)); its posterior mean is exactly
+the rollout's DTC mean, and a joint sample is (Wilson et al. 2020, eq. 13)
 
-Fast evaluation inside the rollout. The update term k(x, X) alpha_s costs O(n) kernel
-evaluations per point; 10 samples x 26 nodes x 20000 steps x n ~ 35000 is ~2e11 kernel
-evaluations, far beyond the time budget. We therefore compress each sample's update
-function u_s(x) = k(x, X) alpha_s (which also carries the posterior mean) onto M inducing
-inputs Z chosen from X by greedy pivoted Cholesky of K_XX: u_s(x) ~ k(x, Z) a_s with a_s the
-regularised least-squares fit of u_s at all n training inputs,
+    f_s(x) = h(x)^T beta_s + k(x, Z) K_ZZ^-1 u_s + [phi_s(x) - k(x, Z) K_ZZ^-1 phi_s(Z)]^T w_s,
 
-    a_s = argmin |K_XZ a - u_s(X)|^2 + sigma_n^2 a^T K_ZZ a      (subset-of-regressors fit).
+(beta_s, u_s) from the DTC posterior, the bracket an RFF sample of the prior residual k - Q
+(Q = K_xZ K_ZZ^-1 K_Zx) that the inducing set cannot represent. Its predictive is the DTC one:
+equal to the exact posterior when Q = K on the data (checked against the exact posterior in
+the UQ diagnostics and in the tests), never variance-starved (the residual term restores the
+prior variance away from Z). A sample costs D cosines + M exponentials per point, evaluated by
+compiled loops with polynomial cos / exp (``CompressedSamples``).
 
-A sample then costs D cosines + M exponentials per point. The compression error is measured
-against the exact update (``compression_error``) at held-out inputs and reported by the UQ
-stage; it is exactly zero for M = n and decreases as M grows.
+Alternative (``pathwise_samples`` + ``compress``): exact-GP pathwise samples (O(n^3)) whose
+update term is fitted onto k(x, Z) a_s by least squares at all training inputs; the fit error
+is measured by ``compression_error``. Used for tests, the exact_pathwise option and the 1D
+momentum GPs, which the rollout tabulates (uq.TabulatedSamples).
 """
 
 from __future__ import annotations
@@ -58,6 +66,7 @@ from numba import njit
 from .gp import GP, basis_matrix_std, kernel_matrix
 
 log = logging.getLogger(__name__)
+
 
 def basis_matrix(Xs: np.ndarray, basis: str) -> np.ndarray:
     """Explicit basis h(u) (n, p) on standardised inputs, exactly as ``crgpr.gp`` defines it

@@ -212,6 +212,7 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None
     Z = arr.get("dtc_Z")
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")
+    spec.rollout_arrays = {k: arr[k] for k in ("dtc_Z", "dtc_w", "dtc_beta") if k in arr}
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
@@ -258,6 +259,18 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
         smp = pathwise_samples(exact_posterior(spec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
     info["sampling_s"] = time.perf_counter() - t0
+    ra = getattr(spec, "rollout_arrays", {})
+    if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
+        # the samples' centre against the mean model the CR-GPR rollout integrates
+        from .rff import se_kernel
+
+        xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
+                                                             replace=False)]
+        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.lengthscales) @ np.ravel(ra["dtc_w"])
+                                + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
+        m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
+        info["centre_vs_rollout_mean_max_over_sd"] = float(np.max(np.abs(m_ours - m_roll) / np.sqrt(v_ours)))
+        info["centre_vs_rollout_mean_max_abs"] = float(np.max(np.abs(m_ours - m_roll)))
     # diagnostics against the exact posterior
     crng = np.random.default_rng(seed + 1)
     limit = settings.exact_check_max_n
