@@ -25,6 +25,10 @@ check_config(config, "config")
 include: "workflow/rules/common.smk"
 include: "workflow/rules/ground_truth.smk"
 include: "workflow/rules/baselines.smk"
+include: "workflow/rules/prefilter.smk"
+include: "workflow/rules/models.smk"
+include: "workflow/rules/rollouts.smk"
+include: "workflow/rules/metrics.smk"
 
 
 rule all:

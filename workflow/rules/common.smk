@@ -20,4 +20,8 @@ ANGLES_GT = sorted(
 # Every stage appends its final targets here; `rule all` collects them.
 ALL_TARGETS = []
 
+# Rollout methods whose results/rollouts/{method}/{angle}.parquet the metrics rule gathers;
+# each stage that writes rollouts extends it (metrics.smk reads it lazily).
+ROLLOUT_METHODS = []
+
 

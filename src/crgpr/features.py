@@ -1,0 +1,151 @@
+"""Inputs and targets of the gradient GPs (paper Sec. III-B step 3, eqs. (estimated_variational_derivative),
+GPR 1-6), shared by training (gradient_models.py) and rollouts (learned.py).
+
+Targets. With J - R of eq. (JR) and G u = [0, 0, 0, 0, -rho A g, 0] (gravity is the input):
+    H_p  = dq/dt                                  (rows 1-3 of eq. (ph-compact))
+    H_q  = -(dp/dt - G u) - zeta H_p              (rows 4-6)
+per node and unit length. In the discrete rod (rod.py) the nodal force is
+F_x,i = q_x,i - q_x,i-1 with q on segments and q_N = 0 at the free tip, and F_x,i = -w_i ds H_x,i;
+so the paper's q_x, q_y (whose s-derivative gives dH/dx, dH/dy) are the tip-to-base sums
+    q_j = sum_{i > j} w_i ds H_x,i        (segments j = 0..N-1),
+and the learned dH/dx is recovered as -(q_i - q_{i-1}) / (w_i ds).
+
+Paper features ('paper', methods cr_gpr and cr_gpr_fd):
+    GPR 1, 2 (segments):  [theta_bar_j, dx/ds_j, dy/ds_j]  (mid-segment angle, segment slopes: the
+                          discrete rod's own strain stencil, i.e. central differences at s_j+1/2)
+    GPR 3 (nodes 1..N):   [theta_i, theta_{i-1}, theta_{i+1}, d2theta/ds2_i, dx/ds_i, dy/ds_i] (nodal
+                          stencils of prefilter.spatial_derivatives; free-tip ghost theta_{N+1} =
+                          theta_{N-1}, i.e. kappa = 0 at the tip)
+    GPR 4-6:              p_x -> H_px, p_y -> H_py, p_theta -> H_ptheta
+Angles are only defined modulo 2 pi: with ``theta_wrap`` every angle feature is shifted by the
+multiple of 2 pi that puts theta (theta_i, or theta_bar_j) into the window [c - pi, c + pi)
+centred on the middle c of the training range (neighbours get the same shift, so differences
+are kept). The paper does not say how it treats the angle's periodicity.
+
+Objective features ('objective', cr_gpr_objective, beyond the paper): frame-indifferent
+segment strains; targets are the local stress resultants recovered from the same H_z:
+    n1, n2 from [nu1_j, nu2_j, kappa_j]                 (q rotated into the segment frame)
+    m      from [kappa_j, kappa_{j-1}, kappa_{j+1}, nu1_j, nu2_j] (ghosts kappa_{-1} = kappa_0,
+                                                         kappa_N = 0 at the free tip)
+with m from the moment balance of the discrete rod, tip to base:
+    m_{i-1} = m_i + ds/2 (c_i + c_{i-1}) + w_i ds H_theta,i,  m_N = c_N = 0,
+    c_j = nu1_j n2_j - nu2_j n1_j.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .params import RodParams
+from .prefilter import spatial_derivatives
+from .rod import node_weights
+
+PAPER_Q_FEATURES = ("theta_bar", "dx_ds", "dy_ds")
+PAPER_THETA_FEATURES = ("theta_i", "theta_im1", "theta_ip1", "d2theta_ds2", "dx_ds", "dy_ds")
+OBJ_N_FEATURES = ("nu1", "nu2", "kappa")
+OBJ_M_FEATURES = ("kappa", "kappa_jm1", "kappa_jp1", "nu1", "nu2")
+
+
+def wrap_shift(theta: np.ndarray, center: float | None) -> np.ndarray:
+    """The multiple of 2 pi to add to theta to land in [center - pi, center + pi)."""
+    if center is None:
+        return np.zeros_like(theta)
+    wrapped = center + np.mod(theta - center + math.pi, 2 * math.pi) - math.pi
+    return wrapped - theta
+
+
+def segments(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> dict[str, np.ndarray]:
+    """Segment quantities (..., N): slopes, mid-segment angle, strains nu1, nu2, kappa."""
+    ex = np.diff(x, axis=-1) / ds
+    ey = np.diff(y, axis=-1) / ds
+    tb = 0.5 * (th[..., 1:] + th[..., :-1])
+    c, s = np.cos(tb), np.sin(tb)
+    return {"ex": ex, "ey": ey, "theta_bar": tb, "cos": c, "sin": s,
+            "nu1": c * ex + s * ey, "nu2": -s * ex + c * ey, "kappa": np.diff(th, axis=-1) / ds}
+
+
+def paper_q_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float,
+                     center: float | None) -> np.ndarray:
+    """GPR 1, 2 inputs per segment (..., N, 3)."""
+    sg = segments(x, y, th, ds)
+    tb = sg["theta_bar"]
+    return np.stack([tb + wrap_shift(tb, center), sg["ex"], sg["ey"]], axis=-1)
+
+
+def paper_theta_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float,
+                         center: float | None) -> np.ndarray:
+    """GPR 3 inputs at the free nodes 1..N (..., N, 6)."""
+    dxs, dys, th2 = spatial_derivatives(x, y, th, ds)
+    ghost = th[..., -2:-1]  # theta_{N+1} = theta_{N-1} (kappa = 0 at the free tip)
+    th_ext = np.concatenate([th, ghost], axis=-1)
+    ti = th[..., 1:]
+    sh = wrap_shift(ti, center)
+    return np.stack([ti + sh, th_ext[..., :-2] + sh, th_ext[..., 2:] + sh, th2[..., 1:],
+                     dxs[..., 1:], dys[..., 1:]], axis=-1)
+
+
+def objective_n_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> np.ndarray:
+    """n1, n2 inputs per segment (..., N, 3): [nu1, nu2, kappa]."""
+    sg = segments(x, y, th, ds)
+    return np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
+
+
+def objective_m_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> np.ndarray:
+    """m inputs per segment (..., N, 5): [kappa_j, kappa_{j-1}, kappa_{j+1}, nu1_j, nu2_j]."""
+    sg = segments(x, y, th, ds)
+    k = sg["kappa"]
+    km1 = np.concatenate([k[..., :1], k[..., :-1]], axis=-1)
+    kp1 = np.concatenate([k[..., 1:], np.zeros_like(k[..., :1])], axis=-1)
+    return np.stack([k, km1, kp1, sg["nu1"], sg["nu2"]], axis=-1)
+
+
+def hz_targets(arr: dict[str, np.ndarray], params: RodParams) -> np.ndarray:
+    """H_z = (J - R)^-1 (dz/dt - G u) per node (n_t, N+1, 6), eq. (estimated_variational_derivative)."""
+    hz = np.empty((*arr["x"].shape, 6))
+    hp = np.stack([arr["dx_dt"], arr["dy_dt"], arr["dtheta_dt"]], axis=-1)
+    dp = np.stack([arr["dp_x_dt"], arr["dp_y_dt"], arr["dp_theta_dt"]], axis=-1)
+    gu = np.array([0.0, -params.rhoA * params.g, 0.0])
+    hz[..., 3:] = hp
+    hz[..., :3] = -(dp - gu) - params.zeta * hp
+    return hz
+
+
+def q_from_hz(hx: np.ndarray, params: RodParams) -> np.ndarray:
+    """Tip-to-base sums q_j = sum_{i>j} w_i ds H_i (..., N) from nodal H (..., N+1)."""
+    wds = node_weights(params.N) * params.ds
+    contrib = hx[..., 1:] * wds[1:]
+    return np.flip(np.cumsum(np.flip(contrib, axis=-1), axis=-1), axis=-1)
+
+
+def forces_from_q(qx: np.ndarray, params: RodParams) -> np.ndarray:
+    """Nodal force F_i = q_i - q_{i-1} (q_N = 0, q_{-1} = 0) per unit length: -(dH/dx) (..., N+1)."""
+    wds = node_weights(params.N) * params.ds
+    pad = np.zeros((*qx.shape[:-1], 1))
+    return (np.concatenate([qx, pad], axis=-1) - np.concatenate([pad, qx], axis=-1)) / wds
+
+
+def moments_from_htheta(hth: np.ndarray, c: np.ndarray, params: RodParams) -> np.ndarray:
+    """Segment moments m_j (..., N) from nodal H_theta (..., N+1) and couples c_j (..., N)."""
+    wds = node_weights(params.N) * params.ds
+    N = params.N
+    m = np.zeros_like(c)
+    m_next = np.zeros(c.shape[:-1])
+    c_next = np.zeros(c.shape[:-1])
+    for i in range(N, 0, -1):  # node i gives m_{i-1}
+        m_prev = m_next + 0.5 * params.ds * (c_next + c[..., i - 1]) + wds[i] * hth[..., i]
+        m[..., i - 1] = m_prev
+        m_next, c_next = m_prev, c[..., i - 1]
+    return m
+
+
+def theta_forces_objective(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, nu1: np.ndarray,
+                           nu2: np.ndarray, params: RodParams) -> np.ndarray:
+    """-H_theta per unit length at nodes (..., N+1): (m_i - m_{i-1} + ds/2 (c_i + c_{i-1})) / (w_i ds)."""
+    wds = node_weights(params.N) * params.ds
+    c = nu1 * n2 - nu2 * n1
+    pad = np.zeros((*m.shape[:-1], 1))
+    mm = np.concatenate([m, pad], axis=-1) - np.concatenate([pad, m], axis=-1)
+    cc = np.concatenate([c, pad], axis=-1) + np.concatenate([pad, c], axis=-1)
+    return (mm + 0.5 * params.ds * cc) / wds

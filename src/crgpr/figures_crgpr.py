@@ -1,0 +1,126 @@
+"""Figures of the CR-GPR results (paper Figs. 3-5): overlays, rod shapes, dissipated power and energy balance.
+
+All figures use matplotlib's Agg backend and are written atomically (io.atomic_path).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .io import atomic_path, read_parquet  # noqa: E402
+from .rod import STATE_NAMES  # noqa: E402
+
+LABELS = {"x": "x [m]", "y": "y [m]", "theta": r"$\theta$ [rad]", "p_x": r"$p_x$ [kg/s]",
+          "p_y": r"$p_y$ [kg/s]", "p_theta": r"$p_\theta$ [kg m/s]"}
+
+
+def _save(fig: plt.Figure, path: str | Path) -> None:
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=130, bbox_inches="tight")
+    plt.close(fig)
+
+
+def _arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    df = df.sort_values(["t", "node"])
+    t = np.unique(df["t"].to_numpy())
+    n = int(df["node"].max()) + 1
+    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n, 6)
+
+
+def overlays(gt: pd.DataFrame, pred: pd.DataFrame, out: str | Path, method: str, angle: float) -> None:
+    """Ground truth (solid) vs learned (dashed) at base, mid and tip nodes for all six states (Fig. 3)."""
+    tg, zg = _arrays(gt)
+    tp, zp = _arrays(pred)
+    N = zg.shape[1] - 1
+    nodes = [1, N // 2, N]
+    colors = ["tab:blue", "tab:green", "tab:red"]
+    fig, axes = plt.subplots(3, 2, figsize=(10, 8), sharex=True)
+    for k, name in enumerate(STATE_NAMES):
+        ax = axes[k % 3, k // 3]
+        for c, i in zip(colors, nodes, strict=True):
+            ax.plot(tg, zg[:, i, k], color=c, lw=1.4, label=f"node {i} truth")
+            ax.plot(tp, zp[:, i, k], color=c, lw=1.4, ls="--", label=f"node {i} {method}")
+        ax.set_ylabel(LABELS[name])
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    axes[0, 0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"Ground truth (solid) vs {method} (dashed), theta0 = {angle:g} deg")
+    _save(fig, out)
+
+
+def shapes(gt_train: pd.DataFrame, gt_test: pd.DataFrame, pred_test: pd.DataFrame, out: str | Path,
+           method: str, train_angle: float, test_angle: float, n_frames: int = 6) -> None:
+    """Rod shapes over time: training trajectory (left), test angle truth vs learned (right) (Fig. 4)."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    t0, z0 = _arrays(gt_train)
+    idx = np.linspace(0, t0.size - 1, n_frames).round().astype(int)
+    cmap = plt.get_cmap("viridis")
+    for j, i in enumerate(idx):
+        axes[0].plot(z0[i, :, 0], z0[i, :, 1], "-o", ms=2, color=cmap(j / max(1, n_frames - 1)),
+                     label=f"t = {t0[i]:.2f} s")
+    axes[0].set_title(f"Ground truth, training trajectory (theta0 = {train_angle:g} deg)")
+    tg, zg = _arrays(gt_test)
+    tp, zp = _arrays(pred_test)
+    idx = np.linspace(0, tg.size - 1, 4).round().astype(int)
+    for j, i in enumerate(idx):
+        c = cmap(j / 3)
+        ip = int(np.argmin(np.abs(tp - tg[i])))
+        axes[1].plot(zg[i, :, 0], zg[i, :, 1], "--", color=c, lw=2, label=f"truth t = {tg[i]:.2f} s")
+        axes[1].plot(zp[ip, :, 0], zp[ip, :, 1], "-", color=c, lw=1.2, label=f"{method} t = {tp[ip]:.2f} s")
+    axes[1].set_title(f"{method} vs ground truth (theta0 = {test_angle:g} deg)")
+    for ax in axes:
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    _save(fig, out)
+
+
+def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, method: str,
+           angle: float) -> None:
+    """Dissipated power E(t) = H_z^T R H_z (Fig. 5) and the learned model's energy balance."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    ax = axes[0]
+    ax.plot(gt_energy["t"], gt_energy["dissipation_rate"], color="k", lw=1.2, label="ground truth")
+    ax.plot(learned["t"], learned["dissipation_rate"], color="tab:red", ls="--", lw=1.2, label=method)
+    ax.set_yscale("symlog", linthresh=1e-6)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(r"$E(t) = H_z^T R H_z$ [W]")
+    ax.set_title(f"Dissipated power (min {learned['dissipation_rate'].min():.2e} W >= 0)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    ax = axes[1]
+    ax.plot(learned["t"], learned["H_learned"], color="tab:red",
+            label=r"learned $\hat H$ + gravity (path integral)")
+    ax.plot(learned["t"], learned["H_learned"].iloc[0] - learned["dissipated"], color="tab:orange", ls=":",
+            label=r"$\hat H(0) - \int E\,dt$")
+    ax.plot(gt_energy["t"], gt_energy["H"], color="k", lw=1, label="ground truth H + gravity")
+    ax.plot(learned["t"], learned["balance_residual"], color="tab:purple", lw=1, label="balance residual")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("energy [J]")
+    ax.set_title(f"Energy balance of {method}, theta0 = {angle:g} deg")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    _save(fig, out)
+
+
+def rule(cfg: dict[str, Any], method: str, gt_train: str, gt_test: str, gt_test_energy: str, rollout: str,
+         rollout_energy: str, overlays_out: str, shapes_out: str, energy_out: str) -> None:
+    """Snakemake entry point of rule ``figures_crgpr``."""
+    angle = float(cfg["rollouts"]["figure_angle_deg"])
+    train = float(cfg["angles"]["train_deg"])
+    gtt = read_parquet(gt_test)
+    pred = read_parquet(rollout)
+    overlays(gtt, pred, overlays_out, method, angle)
+    shapes(read_parquet(gt_train), gtt, pred, shapes_out, method, train, angle)
+    energy(read_parquet(rollout_energy), read_parquet(gt_test_energy), energy_out, method, angle)

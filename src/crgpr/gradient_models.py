@@ -1,0 +1,328 @@
+"""Stage 2: the gradient GPs of Table II (paper Sec. III-B step 3) and the objective variant.
+
+One rule per model writes ``results/models/{prefilter}/{model}.npz`` + ``.json``:
+
+* paper models (methods cr_gpr / cr_gpr_fd): ``q_x``, ``q_y`` (ARD-SE, pure-quadratic basis,
+  sigma_n >= 3.4e-2), ``dH_dtheta`` (ARD-SE, constant basis, sigma_n >= 1.8e-3),
+  ``dH_dp_x``, ``dH_dp_y``, ``dH_dp_theta`` (SE, no basis); inputs/targets in features.py;
+* objective models (cr_gpr_objective): ``obj_n1``, ``obj_n2``, ``obj_m`` (local resultants
+  from frame-indifferent strains; same kernels/bases as q_x, q_y, dH_dtheta).
+
+Training set: all (t, node) or (t, segment) samples of the prefilter grid, then a seeded
+random subset of ``n_train`` points (the paper's n). Hyperparameters: the exact vague-prior
+marginal likelihood (gp.fit_gp) on a seeded random subset of ``gradient_models.n_hyper`` of
+those points; the posterior is then conditioned on all n points.
+
+Prediction inside the rollouts (20000 steps x 25 nodes) uses an approximation whose error
+against the exact posterior mean is measured here and stored in the model's JSON:
+* multi-dimensional models: the DTC / subset-of-regressors mean with M inducing inputs
+  chosen by farthest-point sampling in lengthscale-scaled inputs, fitted to ALL n points,
+  basis coefficients estimated jointly (flat prior):
+      min_{beta, w} |v - H beta - K_XZ w|^2 + sigma_n^2 w^T K_ZZ w;
+  the exact posterior mean (Cholesky over n points) is computed at ``check_points`` random
+  training inputs when n <= ``exact_check_max_n``; above it, exact and DTC are compared on a
+  random subset of ``exact_check_max_n`` points (both conditioned on that subset);
+* 1D momentum models: the exact posterior mean tabulated on 4001 points over the training
+  range +- 6 lengthscales (linear interpolation; 0, the prior mean, outside).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import scipy.linalg as sla
+
+from . import features as ft
+from .config import ConfigError, load_config, rod_params
+from .gp import GP, basis_matrix_std, fit_gp, kernel_matrix
+from .io import load_npz, write_csv
+from .params import RodParams
+from .prefilter import prefiltered_arrays, read_prefiltered
+
+log = logging.getLogger(__name__)
+
+PAPER_MODELS: tuple[str, ...] = ("q_x", "q_y", "dH_dtheta", "dH_dp_x", "dH_dp_y", "dH_dp_theta")
+OBJECTIVE_MODELS: tuple[str, ...] = ("obj_n1", "obj_n2", "obj_m")
+ALL_MODELS = PAPER_MODELS + OBJECTIVE_MODELS
+MOMENTUM_MODELS = ("dH_dp_x", "dH_dp_y", "dH_dp_theta")
+
+# Paper Table II, for table2_hyperparameters.csv
+PAPER_TABLE2: dict[str, dict[str, Any]] = {
+    "q_x": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 2.28, "ell": "[3.22, 2.47, 181]",
+            "sigma_n": 3.4e-2, "n": 7910},
+    "q_y": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 1.66, "ell": "[3.11, 1.84, 131]",
+            "sigma_n": 3.4e-2, "n": 8652},
+    "dH_dtheta": {"kernel": "ARD-SE", "basis": "Constant", "sigma_f": 1.14,
+                  "ell": "[0.97, 1.86, 21.7, 4.28, 2.04, 51.1]", "sigma_n": 1.8e-3, "n": 18975},
+    "dH_dp_x": {"kernel": "SE", "basis": "None", "sigma_f": 134.7, "ell": "61.8", "sigma_n": 9.3e-3,
+                "n": 966},
+    "dH_dp_y": {"kernel": "SE", "basis": "None", "sigma_f": 698.3, "ell": "391.1", "sigma_n": 1.1e-2,
+                "n": 966},
+    "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
+                    "n": 980},
+}
+FEATURE_NAMES: dict[str, tuple[str, ...]] = {
+    "q_x": ft.PAPER_Q_FEATURES, "q_y": ft.PAPER_Q_FEATURES, "dH_dtheta": ft.PAPER_THETA_FEATURES,
+    "dH_dp_x": ("p_x",), "dH_dp_y": ("p_y",), "dH_dp_theta": ("p_theta",),
+    "obj_n1": ft.OBJ_N_FEATURES, "obj_n2": ft.OBJ_N_FEATURES, "obj_m": ft.OBJ_M_FEATURES,
+}
+
+
+def model_spec(cfg: dict[str, Any], name: str) -> dict[str, Any]:
+    """Kernel/basis/bound/n of one model from config section ``gradient_models``."""
+    if "gradient_models" not in cfg:
+        raise ConfigError("config: missing section 'gradient_models'")
+    gm = cfg["gradient_models"]
+    if name in PAPER_MODELS:
+        return dict(gm["models"][name])
+    if name in OBJECTIVE_MODELS:
+        return dict(gm["objective_models"][name.removeprefix("obj_")])
+    raise ConfigError(f"unknown gradient model {name!r}; expected one of {ALL_MODELS}")
+
+
+def theta_center(arr: dict[str, np.ndarray]) -> float:
+    """Centre of the training range of theta over the free nodes (for the 2 pi window)."""
+    th = arr["theta"][:, 1:]
+    return 0.5 * (float(th.min()) + float(th.max()))
+
+
+def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
+                  center: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """All (X, y) samples of one model from the prefilter arrays (before subsampling)."""
+    x, y, th = arr["x"], arr["y"], arr["theta"]
+    ds = params.ds
+    hz = ft.hz_targets(arr, params)
+    if name in ("q_x", "q_y"):
+        X = ft.paper_q_features(x, y, th, ds, center)
+        tgt = ft.q_from_hz(hz[..., 0 if name == "q_x" else 1], params)
+    elif name == "dH_dtheta":
+        X = ft.paper_theta_features(x, y, th, ds, center)
+        tgt = hz[:, 1:, 2]
+    elif name in MOMENTUM_MODELS:
+        k = MOMENTUM_MODELS.index(name)
+        X = np.stack([arr[("p_x", "p_y", "p_theta")[k]]], axis=-1)[:, 1:]
+        tgt = hz[:, 1:, 3 + k]
+    elif name in OBJECTIVE_MODELS:
+        sg = ft.segments(x, y, th, ds)
+        qx, qy = ft.q_from_hz(hz[..., 0], params), ft.q_from_hz(hz[..., 1], params)
+        n1 = qx * sg["cos"] + qy * sg["sin"]
+        n2 = -qx * sg["sin"] + qy * sg["cos"]
+        if name == "obj_n1":
+            X, tgt = ft.objective_n_features(x, y, th, ds), n1
+        elif name == "obj_n2":
+            X, tgt = ft.objective_n_features(x, y, th, ds), n2
+        else:
+            c = sg["nu1"] * n2 - sg["nu2"] * n1
+            X, tgt = ft.objective_m_features(x, y, th, ds), ft.moments_from_htheta(hz[..., 2], c, params)
+    else:
+        raise ConfigError(f"unknown gradient model {name!r}")
+    return X.reshape(-1, X.shape[-1]), tgt.reshape(-1)
+
+
+# ---------------------------------------------------------------------------------------------
+# approximations of the posterior mean for the rollouts
+# ---------------------------------------------------------------------------------------------
+def farthest_points(P: np.ndarray, M: int, seed: int) -> np.ndarray:
+    """Indices of M rows of P chosen by greedy farthest-point sampling (seeded start)."""
+    n = P.shape[0]
+    if M >= n:
+        return np.arange(n)
+    rng = np.random.default_rng(seed)
+    idx = np.empty(M, dtype=int)
+    idx[0] = rng.integers(n)
+    d2 = ((P - P[idx[0]]) ** 2).sum(1)
+    for k in range(1, M):
+        idx[k] = int(np.argmax(d2))
+        d2 = np.minimum(d2, ((P - P[idx[k]]) ** 2).sum(1))
+    return idx
+
+
+def dtc_fit(gp: GP, X: np.ndarray, V: np.ndarray, M: int, seed: int) -> dict[str, np.ndarray]:
+    """DTC/SoR mean with jointly estimated basis coefficients (standardised units)."""
+    U = gp.standardise_x(X)
+    ell = np.broadcast_to(gp.lengthscales, (gp.dim,)).astype(float)
+    zi = farthest_points(U / ell, M, seed)
+    Z = U[zi]
+    Kxz = kernel_matrix(gp.kernel, U, Z, gp.sigma_f, ell)
+    Kzz = kernel_matrix(gp.kernel, Z, Z, gp.sigma_f, ell)
+    H = basis_matrix_std(gp.basis, U)
+    m = H.shape[1]
+    Phi = np.hstack([H, Kxz])
+    A = Phi.T @ Phi
+    A[m:, m:] += gp.sigma_n**2 * (Kzz + 1e-8 * gp.sigma_f**2 * np.eye(len(zi)))
+    A[np.diag_indices_from(A)] += 1e-10 * np.trace(A) / A.shape[0]
+    sol = sla.solve(A, Phi.T @ V, assume_a="pos")
+    return {"dtc_Z": Z, "dtc_beta": sol[:m], "dtc_w": sol[m:]}
+
+
+def dtc_predict(gp_like: dict[str, Any], Xs: np.ndarray) -> np.ndarray:
+    """Evaluate a DTC approximation (dict with hyperparameters and dtc arrays) at Xs."""
+    U = (Xs - gp_like["x_mean"]) / gp_like["x_scale"]
+    ell = np.broadcast_to(gp_like["lengthscales"], (U.shape[1],)).astype(float)
+    K = kernel_matrix(gp_like["kernel"], U, gp_like["dtc_Z"], gp_like["sigma_f"], ell)
+    v = K @ gp_like["dtc_w"] + basis_matrix_std(gp_like["basis"], U) @ gp_like["dtc_beta"]
+    return gp_like["y_mean"] + gp_like["y_scale"] * np.ravel(v)
+
+
+def _gp_like(gp: GP, approx: dict[str, np.ndarray]) -> dict[str, Any]:
+    return {"kernel": gp.kernel, "basis": gp.basis, "sigma_f": gp.sigma_f,
+            "lengthscales": np.ravel(gp.lengthscales), "x_mean": gp.x_mean, "x_scale": gp.x_scale,
+            "y_mean": float(gp.y_mean[0]), "y_scale": float(gp.y_scale[0]), **approx}
+
+
+def _err(a: np.ndarray, b: np.ndarray, scale: float) -> dict[str, float]:
+    d = a - b
+    return {"rmse": float(np.sqrt(np.mean(d**2))), "max_abs": float(np.abs(d).max()),
+            "rmse_over_target_std": float(np.sqrt(np.mean(d**2)) / scale)}
+
+
+def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm: dict[str, Any],
+              seed: int) -> tuple[GP, dict[str, np.ndarray], dict[str, Any]]:
+    """Fit one gradient GP and its rollout approximation; returns (gp, arrays, report)."""
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    n_all = X.shape[0]
+    n = min(int(spec["n_train"]), n_all)
+    idx = np.sort(rng.choice(n_all, size=n, replace=False)) if n < n_all else np.arange(n_all)
+    Xn, yn = X[idx], y[idx]
+    gp = fit_gp(Xn, yn, kernel=spec["kernel"], basis=spec["basis"], ard=bool(spec["ard"]),
+                sigma_n_min=float(spec["sigma_n_min"]) or None, n_restarts=int(gm["n_restarts"]),
+                seed=seed, hyper_subset=int(gm["n_hyper"]), factorise=False,
+                init={"sigma_f": 1.0, "lengthscales": 1.0, "sigma_n": 0.05})
+    t_hyper = time.perf_counter() - t0
+    report: dict[str, Any] = {"model": name, "n_available": int(n_all), "n": int(n),
+                              "hyper_subset": int(min(int(gm["n_hyper"]), n)),
+                              "hyper_subset_choice": f"uniform random without replacement, seed {seed}",
+                              "seconds_hyper": t_hyper}
+    ystd = float(np.std(yn)) or 1.0
+    if gp.dim == 1:
+        gp.ensure_factorised()
+        ell = float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0])
+        grid = np.linspace(Xn.min() - 6 * ell, Xn.max() + 6 * ell, 4001)
+        table = gp.predict(grid[:, None])
+        arrays = {"table_x": grid, "table_y": table}
+        xc = rng.uniform(grid[0], grid[-1], int(gm["check_points"]))
+        approx = np.interp(xc, grid, table, left=0.0, right=0.0)
+        report["approximation"] = "exact mean tabulated (4001 points, linear interpolation)"
+        report["approx_error_vs_exact"] = _err(approx, gp.predict(xc[:, None]), ystd)
+    else:
+        V = ((yn - gp.y_mean[0]) / gp.y_scale[0])[:, None]
+        M = int(gm["inducing"])
+        arrays = dtc_fit(gp, Xn, V, M, seed)
+        like = _gp_like(gp, arrays)
+        n_chk = min(int(gm["check_points"]), n)
+        ci = rng.choice(n, size=n_chk, replace=False)
+        limit = int(gm["exact_check_max_n"])
+        if n <= limit:
+            gp.ensure_factorised()
+            exact = gp.predict(Xn[ci])
+            report["approx_check"] = f"exact posterior mean over all n = {n} points"
+            report["approx_error_vs_exact"] = _err(dtc_predict(like, Xn[ci]), exact, ystd)
+        else:
+            si = np.sort(rng.choice(n, size=limit, replace=False))
+            sub = fit_gp(Xn[si], yn[si], kernel=gp.kernel, basis=gp.basis, ard=gp.ard,
+                         fixed={"sigma_f": gp.sigma_f, "lengthscales": gp.lengthscales,
+                                "sigma_n": gp.sigma_n}, factorise=False)
+            sub.y_mean, sub.y_scale = gp.y_mean, gp.y_scale
+            sub.x_mean, sub.x_scale = gp.x_mean, gp.x_scale
+            sub._factorise()
+            Vs = ((yn[si] - gp.y_mean[0]) / gp.y_scale[0])[:, None]
+            sub_like = _gp_like(gp, dtc_fit(gp, Xn[si], Vs, M, seed))
+            cj = rng.choice(limit, size=min(n_chk, limit), replace=False)
+            report["approx_check"] = (f"n = {n} > exact_check_max_n: exact vs DTC (M = {M}) both "
+                                      f"conditioned on a random subset of {limit} points")
+            report["approx_error_vs_exact"] = _err(dtc_predict(sub_like, Xn[si][cj]), sub.predict(Xn[si][cj]),
+                                                   ystd)
+        report["approximation"] = f"DTC mean, M = {len(arrays['dtc_Z'])} farthest-point inducing inputs"
+        report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((dtc_predict(like, Xn) - yn) ** 2)) / ystd)
+    report["target_std"] = ystd
+    report["seconds"] = time.perf_counter() - t0
+    log.info("%s: n = %d, %s, error vs exact %s, %.1f s", name, n, report["approximation"],
+             report["approx_error_vs_exact"], report["seconds"])
+    return gp, arrays, report
+
+
+def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_stem: str | Path,
+                prefilter_method: str = "gp") -> dict[str, Any]:
+    """Build the data set of ``name`` from a prefilter Parquet file, fit, and save."""
+    params = rod_params(cfg)
+    gm = cfg["gradient_models"]
+    spec = model_spec(cfg, name)
+    arr = prefiltered_arrays(read_prefiltered(prefiltered))
+    if arr["x"].shape[1] != params.N + 1:
+        raise ValueError(f"{prefiltered}: {arr['x'].shape[1]} nodes but config rod.N = {params.N}")
+    center = theta_center(arr) if gm["theta_wrap"] else None
+    X, y = training_data(arr, params, name, center)
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+        raise ValueError(f"{prefiltered}: non-finite features or targets for model {name}")
+    seed = int(cfg["seed"]) + 2000 + ALL_MODELS.index(name)
+    gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
+    extra = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
+             "prefilter": prefilter_method, "source": str(prefiltered), "seed": seed, **report,
+             "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py"}
+    gp.save(out_stem, extra=extra, extra_arrays=arrays)
+    return extra
+
+
+def load_model_arrays(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """npz arrays and JSON metadata of a saved gradient model (no pickle, no factorisation)."""
+    import json
+
+    stem = Path(stem)
+    js = stem.with_suffix(".json")
+    if not js.exists():
+        raise FileNotFoundError(f"{js}: gradient model file missing")
+    return load_npz(stem.with_suffix(".npz")), json.loads(js.read_text())
+
+
+def table2(model_jsons: list[str | Path], out: str | Path) -> pd.DataFrame:
+    """Table II: our hyperparameters (output/input units) beside the paper's."""
+    import json
+
+    rows = []
+    for p in model_jsons:
+        meta = json.loads(Path(p).read_text())
+        name = meta["name"]
+        paper = PAPER_TABLE2.get(name, {})
+        rows.append({
+            "model": name, "prefilter": meta.get("prefilter"),
+            "kernel": ("ARD-" if meta["ard"] else "") + meta["kernel"].upper(), "basis": meta["basis"],
+            "features": " ".join(meta["features"]),
+            "sigma_f": meta["sigma_f"],
+            "lengthscales": "[" + ", ".join(f"{v:.4g}" for v in meta["lengthscales"]) + "]",
+            "sigma_n": meta["sigma_n"],
+            "sigma_n_lower_bound": meta["info"].get("sigma_n_lower_std", math.nan) * meta["y_scale"][0],
+            "n": meta["n"], "n_hyper": meta["hyper_subset"],
+            "approx_rmse_over_target_std": meta["approx_error_vs_exact"]["rmse_over_target_std"],
+            "paper_kernel": paper.get("kernel", ""), "paper_basis": paper.get("basis", ""),
+            "paper_sigma_f": paper.get("sigma_f", math.nan), "paper_lengthscales": paper.get("ell", ""),
+            "paper_sigma_n": paper.get("sigma_n", math.nan), "paper_n": paper.get("n", math.nan),
+        })
+    df = pd.DataFrame(rows)
+    write_csv(df, out)
+    return df
+
+
+def rule(cfg: dict[str, Any], model: str, prefilter_method: str, prefiltered: str, out_npz: str) -> None:
+    """Snakemake entry point of rule ``gradient_model``."""
+    train_model(cfg, model, prefiltered, Path(out_npz).with_suffix(""), prefilter_method)
+
+
+def add_cli(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train-gradient-model", help="stage 2: fit one gradient GP of Table II",
+                       description="Fit one gradient GP (targets H_z of eq. "
+                                   "(estimated_variational_derivative)) from a prefilter Parquet file.")
+    p.add_argument("--model", choices=ALL_MODELS, required=True)
+    p.add_argument("--prefiltered", required=True, help="prefilter Parquet file (stage 1)")
+    p.add_argument("--prefilter-method", default="gp", choices=("gp", "fd"))
+    p.add_argument("--out", required=True, help="output stem: writes STEM.npz and STEM.json")
+    p.add_argument("--config", default="config.yaml")
+    p.set_defaults(func=lambda a: train_model(load_config(a.config), a.model, a.prefiltered, a.out,
+                                              a.prefilter_method))

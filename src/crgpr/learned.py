@@ -1,0 +1,280 @@
+"""Stage 3: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (nonpde)).
+
+    dz/dt = (J - R) H_z_hat(z) + G u
+
+integrated with the ground truth's Strang-split Stormer-Verlet scheme and time step
+(integrator.run_hamiltonian), clamped base, free tip, released straight at rest.
+
+Methods (config ``rollouts.methods``):
+* ``cr_gpr`` / ``cr_gpr_fd``: the paper's six GPs (features 'paper', prefilter gp / fd):
+  nodal forces -dH/dx_i = (q_x,i - q_x,i-1) / (w_i ds) from the segment GPs q_x, q_y
+  (q_N = 0: free tip), -dH/dtheta_i from GPR 3, dq/dt = H_p(p) from GPR 4-6;
+* ``cr_gpr_objective``: local resultants n1, n2, m from frame-indifferent strains, rotated
+  back (q_x = n1 cos theta_bar - n2 sin theta_bar, ...), and the discrete moment balance
+  -dH/dtheta_i = (m_i - m_{i-1} + ds/2 (c_i + c_{i-1})) / (w_i ds), c = nu1 n2 - nu2 n1.
+The GP means are evaluated by their measured approximations (gradient_models.py), compiled
+with numba and batched over the nodes.
+
+Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
+dissipated power, paper Fig. 5), and the learned stored energy by the path integral
+H_hat(t) = int H_z_hat . dz (trapezoid over the recorded samples) plus the gravity
+potential; the balance residual H_hat(t) + U_g(t) - H_hat(0) - U_g(0) + int_0^t E measures how
+far the learned force field is from a gradient field plus the time discretisation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from . import features as ft
+from .config import ConfigError, load_config, rod_params, sim_settings
+from .gradient_models import MOMENTUM_MODELS, load_model_arrays
+from .integrator import SimulationDiverged, run_hamiltonian
+from .io import write_json, write_parquet
+from .params import RodParams, SimSettings
+from .rod import free_mask, node_weights, straight_rod
+from .simulate import Trajectory, trajectory_frame
+
+log = logging.getLogger(__name__)
+
+_BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
+_KERNEL_ID = {"se": 0, "matern52": 1}
+
+
+@njit(cache=True)
+def _dtc_eval(X, x_mean, x_scale, ell, Zl, w, sf2, beta, basis_id, kernel_id, y_mean, y_scale, out):
+    """out[i] = y_mean + y_scale (sum_m w_m k(u_i, z_m) + h(u_i)^T beta), u = (x - x_mean) / x_scale."""
+    n, d = X.shape
+    M = Zl.shape[0]
+    u = np.empty(d)
+    ul = np.empty(d)
+    for i in range(n):
+        for k in range(d):
+            u[k] = (X[i, k] - x_mean[k]) / x_scale[k]
+            ul[k] = u[k] / ell[k]
+        acc = 0.0
+        for m in range(M):
+            r2 = 0.0
+            for k in range(d):
+                dd = ul[k] - Zl[m, k]
+                r2 += dd * dd
+            if kernel_id == 0:
+                acc += w[m] * math.exp(-0.5 * r2)
+            else:
+                r = math.sqrt(r2)
+                s5r = 2.23606797749979 * r
+                acc += w[m] * (1.0 + s5r + (5.0 / 3.0) * r2) * math.exp(-s5r)
+        acc *= sf2
+        if basis_id >= 1:
+            acc += beta[0]
+        if basis_id >= 2:
+            for k in range(d):
+                acc += beta[1 + k] * u[k]
+        if basis_id >= 3:
+            for k in range(d):
+                acc += beta[1 + d + k] * u[k] * u[k]
+        out[i] = y_mean + y_scale * acc
+
+
+class Approx:
+    """Compiled evaluator of one saved gradient model's rollout approximation."""
+
+    def __init__(self, stem: str | Path):
+        arr, meta = load_model_arrays(stem)
+        self.name = meta["name"]
+        self.meta = meta
+        self.dim = int(meta["dim"])
+        self.y_mean = float(np.ravel(arr["y_mean"])[0])
+        self.y_scale = float(np.ravel(arr["y_scale"])[0])
+        if "table_x" in arr:
+            self.kind = "table"
+            self.tx, self.ty = arr["table_x"], arr["table_y"]
+            self.tslope = np.diff(self.ty) / np.diff(self.tx)
+        elif "dtc_Z" in arr:
+            self.kind = "dtc"
+            if meta["basis"] not in _BASIS_ID or meta["kernel"] not in _KERNEL_ID:
+                raise ValueError(f"{stem}: unsupported kernel/basis {meta['kernel']}/{meta['basis']}")
+            ell = np.broadcast_to(np.ravel(arr["lengthscales"]), (self.dim,)).astype(float).copy()
+            self.args = (arr["x_mean"].astype(float), arr["x_scale"].astype(float), ell,
+                         np.ascontiguousarray(arr["dtc_Z"] / ell), np.ascontiguousarray(arr["dtc_w"][:, 0]),
+                         float(meta["sigma_f_std"]) ** 2, np.ascontiguousarray(arr["dtc_beta"][:, 0]),
+                         _BASIS_ID[meta["basis"]], _KERNEL_ID[meta["kernel"]], self.y_mean, self.y_scale)
+        else:
+            raise ValueError(f"{stem}: no rollout approximation arrays (table_x or dtc_Z)")
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        if self.kind == "table":
+            x = np.asarray(X, dtype=float)
+            return np.interp(x, self.tx, self.ty, left=0.0, right=0.0)
+        X = np.ascontiguousarray(X, dtype=float)
+        out = np.empty(X.shape[0])
+        _dtc_eval(X, *self.args, out)
+        return out
+
+    def slope(self, x: np.ndarray) -> np.ndarray:
+        """Derivative of the tabulated 1D interpolant (segment slope; 0 outside)."""
+        j = np.searchsorted(self.tx, x) - 1
+        inside = (j >= 0) & (j < self.tslope.size)
+        return np.where(inside, self.tslope[np.clip(j, 0, self.tslope.size - 1)], 0.0)
+
+
+class LearnedRod:
+    """H_z_hat of a method; ``force(q)`` = -H_q_hat + G u and ``velocity(p)`` = H_p_hat per length."""
+
+    def __init__(self, model_dir: str | Path, features: str, params: RodParams,
+                 momentum_dir: str | Path | None = None):
+        model_dir = Path(model_dir)
+        momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
+        self.features = features
+        self.params = params
+        self.wds = node_weights(params.N) * params.ds
+        self.hp = [Approx(momentum_dir / m) for m in MOMENTUM_MODELS]
+        if features == "paper":
+            self.q_x, self.q_y = Approx(model_dir / "q_x"), Approx(model_dir / "q_y")
+            self.h_th = Approx(model_dir / "dH_dtheta")
+            self.center = self.q_x.meta.get("theta_center")
+            c2 = self.h_th.meta.get("theta_center")
+            if (self.center is None) != (c2 is None) or (c2 is not None and abs(c2 - self.center) > 1e-12):
+                raise ValueError(f"{model_dir}: q_x and dH_dtheta were trained with different theta windows")
+        elif features == "objective":
+            self.n1, self.n2 = Approx(model_dir / "obj_n1"), Approx(model_dir / "obj_n2")
+            self.m = Approx(model_dir / "obj_m")
+        else:
+            raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
+        self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
+
+    def internal(self, q: np.ndarray) -> np.ndarray:
+        """-H_q_hat per unit length at every node (N+1, 3) for one configuration q (N+1, 3)."""
+        P = self.params
+        x, y, th = q[:, 0], q[:, 1], q[:, 2]
+        out = np.zeros((P.N + 1, 3))
+        if self.features == "paper":
+            Xq = ft.paper_q_features(x, y, th, P.ds, self.center)
+            out[:, 0] = ft.forces_from_q(self.q_x(Xq), P)
+            out[:, 1] = ft.forces_from_q(self.q_y(Xq), P)
+            out[1:, 2] = -self.h_th(ft.paper_theta_features(x, y, th, P.ds, self.center))
+        else:
+            sg = ft.segments(x, y, th, P.ds)
+            Xn = np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
+            n1, n2 = self.n1(Xn), self.n2(Xn)
+            m = self.m(ft.objective_m_features(x, y, th, P.ds))
+            c, s = sg["cos"], sg["sin"]
+            out[:, 0] = ft.forces_from_q(n1 * c - n2 * s, P)
+            out[:, 1] = ft.forces_from_q(n1 * s + n2 * c, P)
+            out[:, 2] = ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)
+        return out
+
+    def force(self, q: np.ndarray) -> np.ndarray:
+        return self.internal(q) + self.gu
+
+    def velocity(self, p: np.ndarray) -> np.ndarray:
+        return np.stack([self.hp[k](p[:, k]) for k in range(3)], axis=1)
+
+    def velocity_slope(self, p: np.ndarray) -> np.ndarray:
+        return np.stack([self.hp[k].slope(p[:, k]) for k in range(3)], axis=1)
+
+    def hz(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """H_z_hat (N+1, 6) per unit length."""
+        return np.concatenate([-self.internal(q), self.velocity(p)], axis=1)
+
+
+def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout") -> Trajectory:
+    """Integrate the learned dPHS from the straight rod at rest (same scheme and dt as ground truth)."""
+    P = model.params
+    q0 = straight_rod(math.radians(theta0_deg), P)
+    out = run_hamiltonian(q0, np.zeros_like(q0), model.force, model.velocity, free_mask(P), P.zeta,
+                          settings.dt, settings.n_steps, settings.record_every, model.wds, what,
+                          velocity_slope=model.velocity_slope)
+    return Trajectory(float(theta0_deg), out.t, out.q, out.v, P, out.dissipated)
+
+
+def learned_energy(model: LearnedRod, traj: Trajectory) -> pd.DataFrame:
+    """Dissipated power E(t) = H_z^T R H_z of the learned model and its energy balance (see module doc)."""
+    P = model.params
+    free = free_mask(P)
+    hz = np.array([model.hz(q, p) for q, p in zip(traj.q, traj.p, strict=True)])  # (n_t, N+1, 6)
+    z = traj.z
+    hp = hz[..., 3:] * free
+    rate = P.zeta * (model.wds[:, None] * hp**2).sum(axis=(1, 2))
+    w6 = np.concatenate([model.wds[:, None] * free, model.wds[:, None] * free], axis=1)
+    dz = np.diff(z, axis=0)
+    dH = (0.5 * (hz[1:] + hz[:-1]) * dz * w6).sum(axis=(1, 2))
+    H_path = np.concatenate([[0.0], np.cumsum(dH)])
+    U_g = P.rhoA * P.g * (model.wds * traj.q[..., 1]).sum(axis=1)
+    dissipated = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(traj.t))])
+    total = H_path + U_g
+    return pd.DataFrame({"t": traj.t, "dissipation_rate": rate, "dissipated": dissipated,
+                         "H_learned": total, "stored_learned": H_path, "gravity": U_g,
+                         "balance_residual": total - total[0] + dissipated,
+                         "dissipated_integrator": traj.dissipated})
+
+
+def method_spec(cfg: dict[str, Any], method: str) -> dict[str, str]:
+    methods = cfg["rollouts"]["methods"]
+    if method not in methods:
+        raise ConfigError(f"rollouts.methods: unknown method {method!r}; configured: {sorted(methods)}")
+    return methods[method]
+
+
+def model_files(results: str, method_cfg: dict[str, str]) -> list[str]:
+    """Model JSON paths a method needs (for the Snakemake rule)."""
+    pf = method_cfg["prefilter"]
+    if method_cfg["features"] == "paper":
+        names = ["q_x", "q_y", "dH_dtheta", *MOMENTUM_MODELS]
+        return [f"{results}/models/{pf}/{n}.json" for n in names]
+    return ([f"{results}/models/{pf}/{n}.json" for n in ("obj_n1", "obj_n2", "obj_m")]
+            + [f"{results}/models/{pf}/{n}.json" for n in MOMENTUM_MODELS])
+
+
+def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str | Path, out: str | Path,
+                energy_out: str | Path | None = None) -> Trajectory:
+    """Roll one method out at one angle; on divergence write ``{out}_diverged.json`` and raise."""
+    spec = method_spec(cfg, method)
+    params, settings = rod_params(cfg), sim_settings(cfg)
+    model = LearnedRod(model_dir, spec["features"], params)
+    t0 = time.perf_counter()
+    record = Path(str(out).removesuffix(".parquet") + "_diverged.json")
+    try:
+        traj = rollout(model, angle, settings, what=f"{method} rollout at theta0 = {angle:g} deg")
+    except SimulationDiverged as exc:
+        write_json({"method": method, "theta0_deg": angle, "t_s": exc.t, "step": exc.step,
+                    "node": exc.node, "message": str(exc)}, record)
+        raise
+    if record.exists():
+        record.unlink()
+    secs = time.perf_counter() - t0
+    meta = {"kind": "rollout", "method": method, "theta0_deg": angle, "features": spec["features"],
+            "prefilter": spec["prefilter"], "model_dir": str(model_dir), "seconds": secs,
+            "rod": params.to_dict(), "simulation": settings.to_dict()}
+    log.info("%s at %g deg: %.1f s", method, angle, secs)
+    write_parquet(trajectory_frame(traj), out, meta)
+    if energy_out is not None:
+        write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
+    return traj
+
+
+def rule(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str, model_json: str) -> None:
+    """Snakemake entry point of rule ``rollout``."""
+    run_rollout(cfg, method, float(angle), Path(model_json).parent, out, energy_out)
+
+
+def add_cli(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("rollout", help="stage 3: simulate a learned CR-GPR model",
+                       description="Integrate dz/dt = (J - R) H_z_hat + G u from the straight rod at rest.")
+    p.add_argument("--method", required=True, help="a key of rollouts.methods (cr_gpr, ...)")
+    p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
+    p.add_argument("--models", required=True, help="directory of the method's model files")
+    p.add_argument("--out", required=True)
+    p.add_argument("--energy-out")
+    p.add_argument("--config", default="config.yaml")
+    p.set_defaults(func=lambda a: run_rollout(load_config(a.config), a.method, a.theta0, a.models, a.out,
+                                              a.energy_out))

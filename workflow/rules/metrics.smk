@@ -1,0 +1,68 @@
+# Metrics of every rollout method in ROLLOUT_METHODS (common.smk; each stage extends it) on
+# the test angles: accuracy.parquet, Tables I and IV; CR-GPR figures (paper Figs. 3-5).
+
+
+rule metrics:
+    input:
+        code=lib("config", "rod", "simulate", "metrics", "smk"),
+        gt=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        rollouts=lambda wc: expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
+                                   method=ROLLOUT_METHODS, angle=config["angles"]["test_deg"]),
+    output:
+        accuracy=f"{RESULTS}/metrics/accuracy.parquet",
+        table1=f"{RESULTS}/tables/table1_accuracy.csv",
+        table4=f"{RESULTS}/tables/table4_ablation.csv",
+    params:
+        methods=lambda wc: list(ROLLOUT_METHODS),
+    log:
+        "logs/metrics/accuracy.log",
+    benchmark:
+        "benchmarks/metrics/accuracy.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/metrics.py"
+
+
+_FIG_ANGLE = config["rollouts"]["figure_angle_deg"]
+_FIG_METHOD = config["rollouts"]["table1_method"]
+
+
+rule figures_crgpr:
+    input:
+        code=lib("rod", "io", "figures_crgpr", "smk"),
+        gt_train=f"{RESULTS}/ground_truth/{config['angles']['train_deg']}.parquet",
+        gt_test=f"{RESULTS}/ground_truth/{_FIG_ANGLE}.parquet",
+        gt_test_energy=f"{RESULTS}/ground_truth/{_FIG_ANGLE}_energy.parquet",
+        rollout=f"{RESULTS}/rollouts/{_FIG_METHOD}/{_FIG_ANGLE}.parquet",
+        rollout_energy=f"{RESULTS}/rollouts/{_FIG_METHOD}/{_FIG_ANGLE}_energy.parquet",
+    output:
+        overlays=f"{RESULTS}/figures/crgpr_overlays_{_FIG_ANGLE}.png",
+        shapes=f"{RESULTS}/figures/crgpr_shapes_{_FIG_ANGLE}.png",
+        energy=f"{RESULTS}/figures/crgpr_energy_{_FIG_ANGLE}.png",
+    log:
+        "logs/figures/crgpr.log",
+    benchmark:
+        "benchmarks/figures/crgpr.tsv"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/figures_crgpr.py"
+
+
+ALL_TARGETS.extend([
+    f"{RESULTS}/metrics/accuracy.parquet",
+    f"{RESULTS}/tables/table1_accuracy.csv",
+    f"{RESULTS}/tables/table4_ablation.csv",
+    f"{RESULTS}/figures/crgpr_overlays_{_FIG_ANGLE}.png",
+    f"{RESULTS}/figures/crgpr_shapes_{_FIG_ANGLE}.png",
+    f"{RESULTS}/figures/crgpr_energy_{_FIG_ANGLE}.png",
+])

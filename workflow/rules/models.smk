@@ -1,0 +1,65 @@
+# Stage 2 (issue 3): the six gradient GPs of Table II (+ the objective variant's three), one
+# job per model, trained on the prefiltered training trajectory; Table II.
+
+from crgpr.learned import model_files as _model_files
+
+
+def _needed_models():
+    """(prefilter, model) pairs used by the configured rollout methods."""
+    out = []
+    for spec in config["rollouts"]["methods"].values():
+        for f in _model_files(RESULTS, spec):
+            pf, name = f.split("/")[-2], f.split("/")[-1].removesuffix(".json")
+            if (pf, name) not in out:
+                out.append((pf, name))
+    return sorted(out, key=lambda x: (x[0] != "gp", x))
+
+
+MODEL_JSONS = [f"{RESULTS}/models/{pf}/{m}.json" for pf, m in _needed_models()]
+
+
+rule gradient_model:
+    input:
+        code=lib("config", "rod", "simulate", "gp", "prefilter", "features", "gradient_models", "smk"),
+        prefiltered=f"{RESULTS}/prefilter/{{prefilter}}/{config['angles']['train_deg']}.parquet",
+    output:
+        npz=f"{RESULTS}/models/{{prefilter}}/{{model}}.npz",
+        json=f"{RESULTS}/models/{{prefilter}}/{{model}}.json",
+    wildcard_constraints:
+        prefilter="gp|fd",
+        model="q_x|q_y|dH_dtheta|dH_dp_x|dH_dp_y|dH_dp_theta|obj_n1|obj_n2|obj_m",
+    log:
+        "logs/models/{prefilter}/{model}.log",
+    benchmark:
+        "benchmarks/models/{prefilter}/{model}.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=15,
+    conda:
+        ENV
+    script:
+        "../scripts/gradient_model.py"
+
+
+rule table2:
+    input:
+        code=lib("gradient_models", "smk"),
+        models=MODEL_JSONS,
+    output:
+        f"{RESULTS}/tables/table2_hyperparameters.csv",
+    log:
+        "logs/tables/table2.log",
+    benchmark:
+        "benchmarks/tables/table2.tsv"
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
+    conda:
+        ENV
+    script:
+        "../scripts/table2.py"
+
+
+ALL_TARGETS.extend([*MODEL_JSONS, f"{RESULTS}/tables/table2_hyperparameters.csv"])

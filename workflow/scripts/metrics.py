@@ -1,0 +1,7 @@
+from crgpr import metrics
+from crgpr.smk import run_rule
+
+run_rule(snakemake, metrics.rule_accuracy, cfg=snakemake.config, methods=list(snakemake.params.methods),
+         angles=list(snakemake.config["angles"]["test_deg"]), results="results",
+         out=snakemake.output.accuracy, table1_out=snakemake.output.table1,
+         table4_out=snakemake.output.table4)

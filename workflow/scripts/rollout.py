@@ -1,0 +1,6 @@
+from crgpr import learned
+from crgpr.smk import run_rule
+
+run_rule(snakemake, learned.rule, cfg=snakemake.config, method=snakemake.wildcards.method,
+         angle=int(snakemake.wildcards.angle), out=snakemake.output.traj, energy_out=snakemake.output.energy,
+         model_json=snakemake.input.models[0])
