@@ -92,3 +92,31 @@ def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):
     np.testing.assert_array_equal(q[-1], q[r - 1])  # frozen at the last plausible record
     reach = np.hypot(q[: r, :, 0], q[: r, :, 1]).max()
     assert reach <= 2 * params.L0
+
+
+def test_baseline_table_means_paper_columns_and_ordering(tmp_path):
+    """The comparison table averages over the test angles and reports the ordering honestly."""
+    from crgpr import baselines
+
+    angles = [60, 125]
+    vals = {"blackbox_gp": 3.0, "pinn_physics": 1.7, "pinn_data_1": 1.6, "pinn_data_8": 0.2, "cr_gpr": 0.4}
+    rows = [{"method": m, "theta0_deg": float(a), "rmse_theta": v * (1 + 0.5 * i), "r2_theta": 0.5,
+             "tip_rmse_over_L": v / 2, "group_nrmse": v / 10}
+            for m, v in vals.items() for i, a in enumerate(angles)]
+    rows.append({"method": "cr_gpr_fd", "theta0_deg": 60.0, "rmse_theta": 9.0, "r2_theta": 0.0,
+                 "tip_rmse_over_L": 1.0, "group_nrmse": 1.0})  # other methods are ignored
+    import pandas as pd
+
+    df = baselines.baseline_table(pd.DataFrame(rows), angles)
+    assert list(df["method"]) == list(baselines.ORDER)
+    r = df.set_index("method")
+    assert r.loc["pinn_data_8", "rmse_theta"] == pytest.approx(0.2 * 1.25)
+    assert r.loc["blackbox_gp", "paper_rmse_theta"] == 4.559
+    assert r.loc["blackbox_gp", "ratio_to_cr_gpr"] == pytest.approx(3.0 / 0.4)
+    notes = " ".join(baselines.ordering_notes(df))
+    assert "DISAGREES" in notes and "beaten by: pinn_data_8" in notes
+    out = tmp_path / "b.png"
+    baselines.plot_baselines(df, out)
+    assert out.stat().st_size > 10_000
+    with pytest.raises(ValueError, match="expected"):
+        baselines.baseline_table(pd.DataFrame(rows), [60, 125, 160])

@@ -3,6 +3,7 @@
 
 PINN_VARIANTS = ["pinn_physics", "pinn_data_1", "pinn_data_8"]
 BASELINE_METHODS = ["blackbox_gp", *PINN_VARIANTS]
+ROLLOUT_METHODS.extend(BASELINE_METHODS)  # the metrics rule scores every method in this list
 # ground-truth angles each PINN variant trains on (crgpr.pinn.variant_angles, same order)
 PINN_DATA_ANGLES = {
     "pinn_physics": [],
@@ -108,7 +109,9 @@ rule blackbox_rollout:
         "../scripts/blackbox_rollout.py"
 
 
-# (blackbox targets join ALL_TARGETS once the prefilter rule of issue 3 is in the tree)
+ALL_TARGETS.extend(
+    expand(f"{RESULTS}/rollouts/blackbox_gp/{{angle}}.parquet", angle=config["angles"]["test_deg"])
+)
 
 
 rule baselines_table:
@@ -138,3 +141,6 @@ rule baselines_table:
         ENV
     script:
         "../scripts/baselines_table.py"
+
+
+ALL_TARGETS.extend(rules.baselines_table.output)
