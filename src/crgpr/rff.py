@@ -337,35 +337,49 @@ def _exp_neg_half(r2):
 
 
 @njit(cache=True, fastmath=True)
-def _kernel_sum(xl, Zl, a, sf2, out):
-    """out[s, i] += sf2 sum_m a[s, m] exp(-|xl[s, i] - Zl[m]|^2 / 2) (lengthscale-scaled inputs)."""
+def _kernel_sum(xl, ZlT, a, sf2, out):
+    """out[s, i] += sf2 sum_m a[s, m] exp(-|xl[s, i] - Zl[m]|^2 / 2) (lengthscale-scaled inputs;
+    ZlT (d, M) transposed so that the inner loops run over contiguous inducing points)."""
     S, m, d = xl.shape
-    M = Zl.shape[0]
+    M = ZlT.shape[1]
+    r2 = np.empty(M)
     for s in range(S):
         for i in range(m):
+            r2[:] = 0.0
+            for k in range(d):
+                xk = xl[s, i, k]
+                for j in range(M):
+                    dd = xk - ZlT[k, j]
+                    r2[j] += dd * dd
             acc = 0.0
             for j in range(M):
-                r2 = 0.0
-                for k in range(d):
-                    dd = xl[s, i, k] - Zl[j, k]
-                    r2 += dd * dd
-                acc += a[s, j] * _exp_neg_half(r2)
+                acc += a[s, j] * _exp_neg_half(r2[j])
             out[s, i] += sf2 * acc
 
 
 @njit(cache=True, fastmath=True)
-def _rff_sum(xs, omega, phase, w, scale, out):
+def _rff_sum_t(xs, omegaT, phase, w, scale, out):
+    """out[s, i] = scale sum_j w[s, j] cos(omega_s,j . xs[s, i] + phase[s, j]), omegaT (S, d, D)."""
     S, m, d = xs.shape
-    D = omega.shape[1]
+    D = omegaT.shape[2]
+    t = np.empty(D)
     for s in range(S):
         for i in range(m):
+            for j in range(D):
+                t[j] = phase[s, j]
+            for k in range(d):
+                xk = xs[s, i, k]
+                for j in range(D):
+                    t[j] += omegaT[s, k, j] * xk
             acc = 0.0
             for j in range(D):
-                t = phase[s, j]
-                for k in range(d):
-                    t += omega[s, j, k] * xs[s, i, k]
-                acc += w[s, j] * _cos_poly(t)
+                acc += w[s, j] * _cos_poly(t[j])
             out[s, i] = scale * acc
+
+
+def _rff_sum(xs, omega, phase, w, scale, out):
+    """As ``_rff_sum_t`` with omega (S, D, d)."""
+    _rff_sum_t(xs, np.ascontiguousarray(np.transpose(omega, (0, 2, 1))), phase, w, scale, out)
 
 
 # ----------------------------------------------------------------------------------------
@@ -523,7 +537,8 @@ class CompressedSamples:
         self.phase = np.ascontiguousarray(self.phase, dtype=float)
         if self.omega.ndim != 3 or self.omega.shape[0] != self.w.shape[0]:
             raise ValueError(f"omega must be (S, D, d) with S = {self.w.shape[0]}, got {self.omega.shape}")
-        self._Zl = np.ascontiguousarray(self.Z / self.lengthscales)
+        self._ZlT = np.ascontiguousarray((self.Z / self.lengthscales).T)
+        self._omegaT = np.ascontiguousarray(np.transpose(self.omega, (0, 2, 1)))
         self._scale = math.sqrt(2.0 * self.sigma_f**2 / self.omega.shape[1])
         self._a = np.ascontiguousarray(self.a, dtype=float)
 
@@ -552,8 +567,8 @@ class CompressedSamples:
         xs = np.ascontiguousarray((x - self.x_mean) / self.x_std)
         S, m, d = xs.shape
         out = np.empty((S, m))
-        _rff_sum(xs, self.omega, self.phase, self.w, self._scale, out)
-        _kernel_sum(np.ascontiguousarray(xs / self.lengthscales), self._Zl, self._a, self.sigma_f**2, out)
+        _rff_sum_t(xs, self._omegaT, self.phase, self.w, self._scale, out)
+        _kernel_sum(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2, out)
         if self.beta.shape[1]:
             H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
             out += np.einsum("smp,sp->sm", H, self.beta)
