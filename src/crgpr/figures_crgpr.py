@@ -114,10 +114,9 @@ def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, meth
     _save(fig, out)
 
 
-def rule(cfg: dict[str, Any], method: str, gt_train: str, gt_test: str, gt_test_energy: str, rollout: str,
-         rollout_energy: str, overlays_out: str, shapes_out: str, energy_out: str) -> None:
+def rule(cfg: dict[str, Any], method: str, angle: float, gt_train: str, gt_test: str, gt_test_energy: str,
+         rollout: str, rollout_energy: str, overlays_out: str, shapes_out: str, energy_out: str) -> None:
     """Snakemake entry point of rule ``figures_crgpr``."""
-    angle = float(cfg["rollouts"]["figure_angle_deg"])
     train = float(cfg["angles"]["train_deg"])
     gtt = read_parquet(gt_test)
     pred = read_parquet(rollout)

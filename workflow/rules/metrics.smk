@@ -29,25 +29,27 @@ rule metrics:
 
 
 _FIG_ANGLE = config["rollouts"]["figure_angle_deg"]
-_FIG_METHOD = config["rollouts"]["table1_method"]
 
 
 rule figures_crgpr:
     input:
         code=lib("rod", "io", "figures_crgpr", "smk"),
         gt_train=f"{RESULTS}/ground_truth/{config['angles']['train_deg']}.parquet",
-        gt_test=f"{RESULTS}/ground_truth/{_FIG_ANGLE}.parquet",
-        gt_test_energy=f"{RESULTS}/ground_truth/{_FIG_ANGLE}_energy.parquet",
-        rollout=f"{RESULTS}/rollouts/{_FIG_METHOD}/{_FIG_ANGLE}.parquet",
-        rollout_energy=f"{RESULTS}/rollouts/{_FIG_METHOD}/{_FIG_ANGLE}_energy.parquet",
+        gt_test=f"{RESULTS}/ground_truth/{{angle}}.parquet",
+        gt_test_energy=f"{RESULTS}/ground_truth/{{angle}}_energy.parquet",
+        rollout=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
+        rollout_energy=f"{RESULTS}/rollouts/{{method}}/{{angle}}_energy.parquet",
     output:
-        overlays=f"{RESULTS}/figures/crgpr_overlays_{_FIG_ANGLE}.png",
-        shapes=f"{RESULTS}/figures/crgpr_shapes_{_FIG_ANGLE}.png",
-        energy=f"{RESULTS}/figures/crgpr_energy_{_FIG_ANGLE}.png",
+        overlays=f"{RESULTS}/figures/{{method}}_overlays_{{angle}}.png",
+        shapes=f"{RESULTS}/figures/{{method}}_shapes_{{angle}}.png",
+        energy=f"{RESULTS}/figures/{{method}}_energy_{{angle}}.png",
+    wildcard_constraints:
+        method="|".join(CRGPR_METHODS),
+        angle=r"-?\d+",
     log:
-        "logs/figures/crgpr.log",
+        "logs/figures/{method}_{angle}.log",
     benchmark:
-        "benchmarks/figures/crgpr.tsv"
+        "benchmarks/figures/{method}_{angle}.tsv"
     threads: 1
     resources:
         mem_mb=1000,
@@ -62,7 +64,6 @@ ALL_TARGETS.extend([
     f"{RESULTS}/metrics/accuracy.parquet",
     f"{RESULTS}/tables/table1_accuracy.csv",
     f"{RESULTS}/tables/table4_ablation.csv",
-    f"{RESULTS}/figures/crgpr_overlays_{_FIG_ANGLE}.png",
-    f"{RESULTS}/figures/crgpr_shapes_{_FIG_ANGLE}.png",
-    f"{RESULTS}/figures/crgpr_energy_{_FIG_ANGLE}.png",
+    *expand(f"{RESULTS}/figures/{{method}}_{{kind}}_{{angle}}.png", method=CRGPR_METHODS,
+            kind=["overlays", "shapes", "energy"], angle=[_FIG_ANGLE]),
 ])

@@ -1,0 +1,126 @@
+"""Stage 2 (crgpr.features, crgpr.gradient_models): targets, training on the smoke config, files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crgpr import features as ft
+from crgpr.config import load_config, rod_params, sim_settings
+from crgpr.gp import fit_gp
+from crgpr.gradient_models import (
+    PAPER_MODELS,
+    _gp_like,
+    dtc_fit,
+    dtc_predict,
+    table2,
+    train_model,
+)
+from crgpr.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
+from crgpr.rod import strains, variational_derivative
+from crgpr.simulate import simulate
+
+SMOKE = Path(__file__).parent / "smoke_config.yaml"
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    cfg = load_config(SMOKE)
+    traj = simulate(85.0, rod_params(cfg), sim_settings(cfg))
+    d = tmp_path_factory.mktemp("gm")
+    df, _ = fd_prefilter(traj, PrefilterSettings.from_config(cfg))
+    df.to_parquet(d / "fd85.parquet")
+    return cfg, traj, d
+
+
+def _exact_arrays(traj):
+    """Prefilter-like arrays with exact time derivatives from the rod's own equations."""
+    P = traj.params
+    hz = np.array([variational_derivative(q, p, P) for q, p in zip(traj.q, traj.p, strict=True)])
+    arr = {k: traj.z[..., i] for i, k in enumerate(("x", "y", "theta", "p_x", "p_y", "p_theta"))}
+    v = hz[..., 3:]
+    for i, c in enumerate(("x", "y", "theta")):
+        arr[f"d{c}_dt"] = v[..., i]
+    gu = np.array([0.0, -P.rhoA * P.g, 0.0])
+    dp = -hz[..., :3] - P.zeta * v + gu
+    for i, c in enumerate(("p_x", "p_y", "p_theta")):
+        arr[f"d{c}_dt"] = dp[..., i]
+    return arr, hz
+
+
+def test_targets_recover_the_discrete_variational_derivative(smoke):
+    """H_z = (J - R)^-1 (dz/dt - G u); q = tip-to-base sums; m from the moment balance."""
+    _, traj, _ = smoke
+    P = traj.params
+    arr, hz = _exact_arrays(traj)
+    np.testing.assert_allclose(ft.hz_targets(arr, P)[:, 1:], hz[:, 1:], rtol=1e-10, atol=1e-12)
+    st = strains(traj.q, P)
+    np.testing.assert_allclose(ft.q_from_hz(hz[..., 0], P), st["q_x"], atol=1e-12)
+    np.testing.assert_allclose(ft.q_from_hz(hz[..., 1], P), st["q_y"], atol=1e-12)
+    sg = ft.segments(traj.q[..., 0], traj.q[..., 1], traj.q[..., 2], P.ds)
+    c = sg["nu1"] * st["n2"] - sg["nu2"] * st["n1"]
+    np.testing.assert_allclose(ft.moments_from_htheta(hz[..., 2], c, P), st["m"], atol=1e-12)
+    # and back: the rollout's force assembly gives -H_q at the free nodes
+    np.testing.assert_allclose(ft.forces_from_q(st["q_x"], P)[:, 1:], -hz[:, 1:, 0], atol=1e-9)
+    f_th = ft.theta_forces_objective(st["n1"], st["n2"], st["m"], sg["nu1"], sg["nu2"], P)
+    np.testing.assert_allclose(f_th[:, 1:], -hz[:, 1:, 2], atol=1e-9)
+
+
+def test_theta_wrap_keeps_differences():
+    th = np.array([[5.0, 5.2, 5.1, 4.9]])
+    x = np.cumsum(np.cos(th), axis=-1)
+    y = np.cumsum(np.sin(th), axis=-1)
+    f = ft.paper_theta_features(x, y, th, 1.0, center=0.0)
+    assert np.all(f[..., 0] < np.pi) and np.all(f[..., 0] >= -np.pi)
+    np.testing.assert_allclose(f[0, :, 1] - f[0, :, 0], th[0, :-1] - th[0, 1:], atol=1e-12)
+
+
+def test_dtc_approximates_exact_mean():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(400, 2))
+    y = np.sin(2 * X[:, 0]) * X[:, 1] + 0.3 * X[:, 0] ** 2 + 0.01 * rng.standard_normal(400)
+    gp = fit_gp(X, y, kernel="se", ard=True, basis="pure_quadratic", sigma_n_min=0.01, seed=0)
+    V = ((y - gp.y_mean[0]) / gp.y_scale[0])[:, None]
+    like = _gp_like(gp, dtc_fit(gp, X, V, 80, 0))
+    Xs = rng.uniform(-1, 1, size=(200, 2))
+    err = dtc_predict(like, Xs) - gp.predict(Xs)
+    assert np.sqrt(np.mean(err**2)) < 0.02 * np.std(y)
+
+
+def test_train_models_on_smoke_prefilter(smoke, tmp_path):
+    cfg, _, d = smoke
+    metas = []
+    for name in ("q_x", "dH_dtheta", "dH_dp_x", "obj_n1"):
+        meta = train_model(cfg, name, d / "fd85.parquet", tmp_path / name, "fd")
+        metas.append(meta)
+        with np.load(tmp_path / f"{name}.npz", allow_pickle=False) as a:
+            assert a["X"].shape[0] == meta["n"]
+        js = json.loads((tmp_path / f"{name}.json").read_text())
+        spec = (cfg["gradient_models"]["models"].get(name)
+                or cfg["gradient_models"]["objective_models"][name.removeprefix("obj_")])
+        assert js["sigma_n"] >= spec["sigma_n_min"] * (1 - 1e-9)
+        assert js["approx_error_vs_exact"]["rmse_over_target_std"] < 0.1
+        assert js["n"] == min(spec["n_train"], js["n_available"])
+    assert metas[0]["theta_center"] == pytest.approx(metas[1]["theta_center"])
+    # the objective n1 model recovers the axial stiffness EA = dn1/dnu1 from data alone
+    P = rod_params(cfg)
+    from crgpr.learned import Approx
+
+    n1 = Approx(tmp_path / "obj_n1")
+    slope = (n1(np.array([[1.001, 0.0, 0.0]])) - n1(np.array([[0.999, 0.0, 0.0]])))[0] / 0.002
+    assert slope == pytest.approx(P.EA, rel=0.1)
+    df = table2([tmp_path / f"{n}.json" for n in ("q_x", "dH_dtheta")], tmp_path / "t2.csv")
+    assert {"sigma_f", "lengthscales", "sigma_n", "n", "paper_sigma_f", "paper_n"} <= set(df.columns)
+    assert df.loc[df["model"] == "q_x", "paper_n"].iloc[0] == 7910
+    assert set(PAPER_MODELS) >= set(df["model"])
+
+
+def test_prefilter_arrays_roundtrip(smoke):
+    cfg, traj, d = smoke
+    import pandas as pd
+
+    arr = prefiltered_arrays(pd.read_parquet(d / "fd85.parquet"))
+    assert arr["x"].shape[1] == traj.params.N + 1
