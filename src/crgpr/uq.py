@@ -595,8 +595,9 @@ def coverage_table(uq_paths: dict[int, str], gt_paths: dict[int, str], settings:
 def band_figure(uq: pd.DataFrame, gt: pd.DataFrame, settings: UQSettings, out: str | Path,
                 mean_traj: pd.DataFrame | None = None) -> None:
     """Rod configurations at four time instants: 95 % band (normal offsets of the sampled
-    shapes from the median shape, lo-hi percentiles) shaded, median solid red, ground truth
-    dashed blue (paper Fig. combined_shapes, right)."""
+    shapes from the median shape, lo-hi percentiles) shaded, thin sampled shapes, the CR-GPR
+    mean-model rollout solid red (the sample median if not given), ground truth dashed blue
+    (paper Fig. combined_shapes, right)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -610,6 +611,12 @@ def band_figure(uq: pd.DataFrame, gt: pd.DataFrame, settings: UQSettings, out: s
     gt = gt.sort_values(["t", "node"])
     n_nodes = arr.shape[2]
     g = gt[["x", "y"]].to_numpy().reshape(len(t), n_nodes, 2)
+    mm = None
+    if mean_traj is not None:
+        mean_traj = mean_traj.sort_values(["t", "node"])
+        if mean_traj["t"].nunique() != len(t):
+            raise ValueError("mean-model rollout and UQ samples have different time grids")
+        mm = mean_traj[["x", "y"]].to_numpy().reshape(len(t), n_nodes, 2)
     idx = [int(round(f * (len(t) - 1))) for f in settings.figure_time_fractions]
     fig, ax = plt.subplots(figsize=(6.4, 5.2))
     colors = plt.cm.viridis(np.linspace(0.0, 0.85, len(idx)))
@@ -627,11 +634,16 @@ def band_figure(uq: pd.DataFrame, gt: pd.DataFrame, settings: UQSettings, out: s
         lower = med + o_lo[:, None] * nrm
         poly = np.vstack([upper, med[-1] + t_hi * tan[-1], lower[::-1]])
         ax.fill(poly[:, 0], poly[:, 1], color=c, alpha=0.3, lw=0)
-        ax.plot(med[:, 0], med[:, 1], "-", color="tab:red", lw=1.6)
+        for smp in arr[:, k]:
+            ax.plot(smp[:, 0], smp[:, 1], "-", color=c, lw=0.4, alpha=0.6)
+        centre = med if mm is None else mm[k]
+        ax.plot(centre[:, 0], centre[:, 1], "-", color="tab:red", lw=1.6)
         ax.plot(g[k, :, 0], g[k, :, 1], "--", color="tab:blue", lw=1.6)
         ax.annotate(f"t = {t[k]:.2f} s", med[-1], textcoords="offset points", xytext=(4, 4),
                     fontsize=8, color=c)
-    ax.plot([], [], "-", color="tab:red", label=f"CR-GPR median of S = {arr.shape[0]} samples")
+    ax.plot([], [], "-", color="tab:red",
+            label="CR-GPR (mean model)" if mm is not None else f"CR-GPR median of S = {arr.shape[0]} samples")
+    ax.plot([], [], "-", color="gray", lw=0.4, label=f"S = {arr.shape[0]} RFF posterior samples")
     ax.plot([], [], "--", color="tab:blue", label="ground truth")
     ax.fill([], [], color="gray", alpha=0.3, label=f"{hi - lo:g} % band ({lo:g}-{hi:g} percentiles)")
     ax.plot(0, 0, "ks", ms=5)
@@ -672,12 +684,14 @@ def coverage_rule(cfg: dict[str, Any], uq_paths: list[str], gt_paths: list[str],
     log.info("coverage:\n%s", df.to_string())
 
 
-def figure_rule(cfg: dict[str, Any], uq_path: str, gt_path: str, out: str) -> None:
-    """Rule ``uq_figure``."""
+def figure_rule(cfg: dict[str, Any], uq_path: str, gt_path: str, out: str,
+                mean_path: str | None = None) -> None:
+    """Rule ``uq_figure``; ``mean_path``: the CR-GPR mean-model rollout at the same angle."""
     settings = UQSettings.from_config(cfg)
     uq = read_parquet(uq_path, required=UQ_COLUMNS)
     gt = read_parquet(gt_path, required=TRAJECTORY_COLUMNS)
-    band_figure(uq, gt, settings, out)
+    mean = read_parquet(mean_path, required=TRAJECTORY_COLUMNS) if mean_path else None
+    band_figure(uq, gt, settings, out, mean)
 
 
 def rollout_rule(cfg: dict[str, Any], angle: int, samples: list[str], models: list[str], out: str) -> None:

@@ -32,7 +32,7 @@ rule uq_samples:
 
 rule uq_rollout:
     input:
-        code=UQ_LIB + lib("rod", "integrator", "simulate", "features", "learned"),
+        code=UQ_LIB + lib("rod", "integrator", "simulate", "features", "prefilter"),
         samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
         models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
     output:
@@ -80,6 +80,7 @@ rule uq_figure:
         code=UQ_LIB,
         uq=f"{RESULTS}/uq/{{angle}}.parquet",
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
+        mean_model=f"{RESULTS}/rollouts/{UQ['method']}/{{angle}}.parquet",
     output:
         f"{RESULTS}/figures/uq_band_{{angle}}.png",
     wildcard_constraints:

@@ -2,4 +2,4 @@ from crgpr import uq
 from crgpr.smk import run_rule
 
 run_rule(snakemake, uq.figure_rule, cfg=snakemake.config, uq_path=snakemake.input.uq,
-         gt_path=snakemake.input.ground_truth, out=snakemake.output[0])
+         gt_path=snakemake.input.ground_truth, out=snakemake.output[0], mean_path=snakemake.input.mean_model)
