@@ -30,7 +30,6 @@ include: "workflow/rules/models.smk"
 include: "workflow/rules/rollouts.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/uq.smk"
-include: "workflow/rules/discovery.smk"
 
 
 rule all:
