@@ -4,7 +4,11 @@ Stage definitions (paper Table "Computational cost"):
 1. GP prefiltering of the training trajectory (prefilter job of the training angle),
 2. gradient learning (sum of the six gradient-model jobs),
 3. one CR-GPR forward simulation (mean over the rollout jobs of ``cr_gpr``),
-4. UQ / RFF sampling, S samples of one angle (mean over the UQ jobs).
+4. UQ / RFF sampling: drawing the S function samples (once) plus one angle's S-sample rollout
+   (mean over the UQ rollout jobs).
+
+Each stage is given as ``{"sum": [files], "mean": [files]}``: its minutes are the sum of the
+first group plus the mean of the second (one job of a per-angle stage).
 """
 
 from __future__ import annotations
@@ -25,7 +29,6 @@ DESCRIPTION = {
     "stage3": "Simulation: one 2 s CR-GPR rollout (mean per angle)",
     "stage4": "UQ / RFF sampling: S trajectory samples of one angle (mean per angle)",
 }
-HOW = {"stage1": "sum", "stage2": "sum", "stage3": "mean", "stage4": "mean"}
 
 
 def machine() -> str:
@@ -48,16 +51,20 @@ def read_benchmark(path: str | Path) -> float:
     return float(df["s"].mean())
 
 
-def timing_table(stage_files: dict[str, list[str]]) -> pd.DataFrame:
+def timing_table(stage_files: dict[str, dict[str, list[str]]]) -> pd.DataFrame:
+    """One row per stage: minutes = sum of the "sum" files + mean of the "mean" files."""
     rows = []
-    for stage, files in stage_files.items():
-        secs = [read_benchmark(f) for f in files]
-        total = float(np.sum(secs)) if HOW[stage] == "sum" else float(np.mean(secs)) if secs else np.nan
-        rows.append({"stage": stage, "description": DESCRIPTION[stage], "minutes": total / 60.0,
-                     "jobs": len(files), "how": HOW[stage], "paper_minutes": PAPER_MINUTES[stage],
-                     "machine": machine()})
+    for stage, groups in stage_files.items():
+        summed = [read_benchmark(f) for f in groups.get("sum", [])]
+        averaged = [read_benchmark(f) for f in groups.get("mean", [])]
+        secs = float(np.sum(summed)) + (float(np.mean(averaged)) if averaged else 0.0)
+        how = " + ".join(x for x in (f"sum of {len(summed)}" if summed else "",
+                                      f"mean of {len(averaged)}" if averaged else "") if x)
+        rows.append({"stage": stage, "description": DESCRIPTION[stage], "minutes": secs / 60.0,
+                     "jobs": len(summed) + len(averaged), "how": how,
+                     "paper_minutes": PAPER_MINUTES[stage], "machine": machine()})
     return pd.DataFrame(rows)
 
 
-def rule(stage_files: dict[str, list[str]], out: str) -> None:
+def rule(stage_files: dict[str, dict[str, list[str]]], out: str) -> None:
     write_parquet(timing_table(stage_files), out, {"kind": "timing"})

@@ -2,13 +2,18 @@
 # of the paper beside ours (results/tables/paper_vs_reproduction.{csv,md}).
 
 
+TRAIN = config["angles"]["train_deg"]
+TEST = config["angles"]["test_deg"]
+TIMED_MODELS = list(config["gradient_models"]["models"])
+
+
 rule timing:
     input:
         code=lib("timing"),
-        stage1=f"{RESULTS}/prefilter/gp/{config['angles']['train_deg']}.parquet",
-        stage2=expand(f"{RESULTS}/models/gp/{{model}}.json", model=GRADIENT_MODELS),
-        stage3=expand(f"{RESULTS}/rollouts/cr_gpr/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
-        stage4=expand(f"{RESULTS}/uq/{{angle}}.parquet", angle=UQ_ANGLES),
+        stage1=f"{RESULTS}/prefilter/gp/{TRAIN}.parquet",
+        stage2=expand(f"{RESULTS}/models/gp/{{model}}.json", model=TIMED_MODELS),
+        stage3=expand(f"{RESULTS}/rollouts/cr_gpr/{{angle}}.parquet", angle=TEST),
+        stage4=expand(f"{RESULTS}/uq/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
         report(
             f"{RESULTS}/metrics/timing.parquet",
@@ -16,11 +21,15 @@ rule timing:
             category="Paper vs reproduction",
         ),
     params:
-        stage_files=lambda wildcards, input: {
-            "stage1": [benchmark_of("prefilter", input.stage1)],
-            "stage2": [benchmark_of("models", f) for f in input.stage2],
-            "stage3": [benchmark_of("rollouts", f) for f in input.stage3],
-            "stage4": [benchmark_of("uq", f) for f in input.stage4],
+        # the benchmark files written by the jobs that produced the inputs above
+        stage_files={
+            "stage1": {"sum": [f"benchmarks/prefilter/gp/{TRAIN}.tsv"]},
+            "stage2": {"sum": [f"benchmarks/models/gp/{m}.tsv" for m in TIMED_MODELS]},
+            "stage3": {"mean": [f"benchmarks/rollouts/cr_gpr/{a}.tsv" for a in TEST]},
+            "stage4": {
+                "sum": ["benchmarks/uq/samples.tsv"],
+                "mean": [f"benchmarks/uq/rollout/{a}.tsv" for a in UQ["angles_deg"]],
+            },
         },
     log:
         "logs/paper/timing.log",
