@@ -235,6 +235,16 @@ def model_files(results: str, method_cfg: dict[str, str]) -> list[str]:
             + [f"{results}/models/{pf}/{n}.json" for n in MOMENTUM_MODELS])
 
 
+def needed_model_jsons(results: str, methods: dict[str, dict[str, str]]) -> list[str]:
+    """Model JSON paths used by the configured rollout methods (gp prefilter first, no duplicates)."""
+    out: list[str] = []
+    for spec in methods.values():
+        for f in model_files(results, spec):
+            if f not in out:
+                out.append(f)
+    return sorted(out, key=lambda f: (f.split("/")[-2] != "gp", f))
+
+
 def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str | Path, out: str | Path,
                 energy_out: str | Path | None = None) -> Trajectory:
     """Roll one method out at one angle; on divergence write ``{out}_diverged.json`` and raise."""

@@ -2,20 +2,9 @@
 # job per model, trained on the prefiltered training trajectory; Table II.
 
 from crgpr.learned import model_files as _model_files
+from crgpr.learned import needed_model_jsons as _needed_model_jsons
 
-
-def _needed_models():
-    """(prefilter, model) pairs used by the configured rollout methods."""
-    out = []
-    for spec in config["rollouts"]["methods"].values():
-        for f in _model_files(RESULTS, spec):
-            pf, name = f.split("/")[-2], f.split("/")[-1].removesuffix(".json")
-            if (pf, name) not in out:
-                out.append((pf, name))
-    return sorted(out, key=lambda x: (x[0] != "gp", x))
-
-
-MODEL_JSONS = [f"{RESULTS}/models/{pf}/{m}.json" for pf, m in _needed_models()]
+MODEL_JSONS = _needed_model_jsons(RESULTS, config["rollouts"]["methods"])
 
 
 rule gradient_model:
