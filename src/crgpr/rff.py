@@ -638,6 +638,12 @@ class SparsePosterior:
         var = (G * G).sum(0) + sp.sigma_f**2 - (psi * psi).sum(1)
         return sp.to_output(mean), var * sp.y_scale**2
 
+    def mean_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """(beta_bar, a_bar): the posterior mean as h(u)^T beta_bar + k(u, Z) a_bar."""
+        p = self.n_basis
+        a = sla.solve_triangular(self.LZ, self.mu[p:], lower=True, trans="T", check_finite=False)
+        return self.mu[:p].copy(), a
+
     def sample(self, n_samples: int, n_features: int, rng: np.random.Generator) -> CompressedSamples:
         """S joint samples f_s = h^T beta_s + psi^T v_s + (phi - k_Z K_ZZ^-1 Phi_Z)^T w_s: the
         DTC posterior of (beta, v) plus an RFF sample of the prior residual k - Q (Wilson et al.

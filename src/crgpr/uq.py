@@ -250,18 +250,28 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
                             "inducing": int(Z.shape[0]), "inducing_source": z_src,
                             "sampler": settings.sampler, "n_features": settings.n_features,
                             "n_samples": settings.n_samples, "seed": seed}
+    ra = getattr(spec, "rollout_arrays", {})
     if settings.sampler == "sparse_pathwise":
         sp = sparse_posterior(spec, Z)
         comp = sp.sample(settings.n_samples, settings.n_features, rng)
+        if "dtc_w" in ra:
+            # centre the samples exactly on the rollout's mean model: its DTC coefficients plus
+            # the zero-mean posterior deviations (the two DTC solutions agree near the data but
+            # differ far from it, where K_ZZ's ill-conditioned directions and the basis
+            # extrapolation dominate; see diagnostics centre_vs_rollout_*)
+            beta_bar, a_bar = sp.mean_coefficients()
+            comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"])
+            comp.beta = comp.beta - beta_bar + np.ravel(ra["dtc_beta"])
+            comp.__post_init__()
+            info["centred_on"] = "the rollout's DTC mean (dtc_w, dtc_beta)"
     else:
         if idx is None:  # compression needs training-point indices: match Z to rows of X
             idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
         smp = pathwise_samples(exact_posterior(spec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
     info["sampling_s"] = time.perf_counter() - t0
-    ra = getattr(spec, "rollout_arrays", {})
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
-        # the samples' centre against the mean model the CR-GPR rollout integrates
+        # our DTC posterior mean against the mean model the CR-GPR rollout integrates
         from .rff import se_kernel
 
         xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
@@ -269,8 +279,9 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
         m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.lengthscales) @ np.ravel(ra["dtc_w"])
                                 + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
         m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
-        info["centre_vs_rollout_mean_max_over_sd"] = float(np.max(np.abs(m_ours - m_roll) / np.sqrt(v_ours)))
-        info["centre_vs_rollout_mean_max_abs"] = float(np.max(np.abs(m_ours - m_roll)))
+        info["sparse_mean_vs_rollout_mean_max_over_sd"] = float(
+            np.max(np.abs(m_ours - m_roll) / np.sqrt(v_ours)))
+        info["sparse_mean_vs_rollout_mean_max_abs"] = float(np.max(np.abs(m_ours - m_roll)))
     # diagnostics against the exact posterior
     crng = np.random.default_rng(seed + 1)
     limit = settings.exact_check_max_n
