@@ -100,11 +100,13 @@ def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, meth
     ax.legend()
     ax.grid(alpha=0.3)
     ax = axes[1]
-    ax.plot(learned["t"], learned["H_learned"], color="tab:red",
-            label=r"learned $\hat H$ + gravity (path integral)")
-    ax.plot(learned["t"], learned["H_learned"].iloc[0] - learned["dissipated"], color="tab:orange", ls=":",
-            label=r"$\hat H(0) - \int E\,dt$")
-    ax.plot(gt_energy["t"], gt_energy["H"], color="k", lw=1, label="ground truth H + gravity")
+    h0 = learned["H_learned"].iloc[0]
+    ax.plot(learned["t"], learned["H_learned"] - h0, color="tab:red",
+            label=r"learned $\Delta(\hat H + U_g)$ (path integral of $\hat H_z$)")
+    ax.plot(learned["t"], -learned["dissipated"], color="tab:orange", ls=":", lw=2,
+            label=r"$-\int_0^t E\,dt$ (learned)")
+    ax.plot(gt_energy["t"], gt_energy["H"] - gt_energy["H"].iloc[0], color="k", lw=1,
+            label=r"ground truth $\Delta(H + U_g)$")
     ax.plot(learned["t"], learned["balance_residual"], color="tab:purple", lw=1, label="balance residual")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("energy [J]")
