@@ -11,6 +11,10 @@ import sys
 COMMAND_MODULES: list[str] = [
     "crgpr.ground_truth",
     "crgpr.paper",
+    "crgpr.prefilter",
+    "crgpr.gradient_models",
+    "crgpr.learned",
+    "crgpr.metrics",
 ]
 
 
