@@ -122,3 +122,50 @@ def test_sample_models_from_saved_gp(tmp_path) -> None:
     mean, var = gp.predict(X[:5], return_var=True)
     assert np.all(np.abs(f.mean(0) - mean) < 6.0 * np.sqrt(var / comp.n_samples) + 1e-6)
     assert read_parquet  # imported for the table test
+
+
+def test_samples_centred_on_rollout_dtc_mean(tmp_path) -> None:
+    """With the rollout's DTC arrays in the model file, the samples scatter around exactly that
+    mean model (the CR-GPR prediction the band is drawn around)."""
+    import dataclasses
+
+    from crgpr.gradient_models import dtc_fit, dtc_predict
+
+    cfg = load_config(SMOKE)
+    settings = dataclasses.replace(UQSettings.from_config(cfg), n_samples=400, n_features=64)
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1.0, 1.0, (300, 3))
+    y = np.sin(2.0 * X[:, 0]) * X[:, 1] + 0.3 * X[:, 2] ** 2 + 0.02 * rng.standard_normal(300)
+    gp = fit_gp(X, y, kernel="ard_se", basis="pure_quadratic", n_restarts=0, seed=0)
+    V = ((y - gp.y_mean[0]) / gp.y_scale[0])[:, None]
+    arrays = dtc_fit(gp, X, V, 40, seed=0)
+    gp.save(tmp_path / "q_y", extra_arrays=arrays)
+    comp = sample_models({"q_y": str(tmp_path / "q_y")}, settings, cfg, tmp_path / "s",
+                         tmp_path / "d.json")["q_y"]
+    like = {"kernel": "se", "basis": gp.basis, "sigma_f": gp.sigma_f,
+            "lengthscales": np.ravel(gp.lengthscales), "x_mean": gp.x_mean, "x_scale": gp.x_scale,
+            "y_mean": float(gp.y_mean[0]), "y_scale": float(gp.y_scale[0]), **arrays}
+    xt = np.vstack([X[:4], [[1.5, -1.5, 1.5]]])
+    f = comp(np.broadcast_to(xt, (400, *xt.shape)))
+    m_roll = dtc_predict(like, xt)
+    assert np.all(np.abs(f.mean(0) - m_roll) < 5.0 * f.std(0) / np.sqrt(400) + 1e-9)
+    assert np.all(f.std(0) > 0)
+
+
+def test_true_targets_match_the_rod_forces() -> None:
+    """The analytic targets used by the calibration check reproduce the rod's nodal forces
+    through the same assembly as the learned model (features.forces_from_q)."""
+    from crgpr.features import forces_from_q
+    from crgpr.rod import internal_forces, node_weights
+    from crgpr.uq import true_targets
+
+    params = RodParams(N=8)
+    traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100))
+    tt = true_targets(traj.q, traj.p, params)
+    wds = node_weights(params.N) * params.ds
+    F = internal_forces(traj.q[-1], params, float(traj.q[0, 0, 2]))[0]
+    np.testing.assert_allclose(forces_from_q(tt["q_x"][-1], params)[1:], F[1:, 0] / wds[1:], rtol=1e-9,
+                               atol=1e-9 * np.abs(F).max())
+    np.testing.assert_allclose(forces_from_q(tt["q_y"][-1], params)[1:], F[1:, 1] / wds[1:], rtol=1e-9,
+                               atol=1e-9 * np.abs(F).max())
+    np.testing.assert_allclose(tt["dH_dp_x"], traj.p[:, 1:, 0] / params.rhoA)

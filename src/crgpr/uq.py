@@ -730,3 +730,83 @@ def rollout_rule(cfg: dict[str, Any], angle: int, samples: list[str], models: li
             "seconds_rollout": secs, "settings": settings.__dict__, "rod": params.to_dict(),
             "simulation": sim.to_dict(), "seed": cfg["seed"]}
     write_parquet(uq_frame(float(angle), t, q, p, keep, params.ds), out, meta)
+
+
+# ----------------------------------------------------------------------------------------
+# function-level calibration on the test trajectories (diagnostic of the band's coverage)
+
+
+def true_targets(q: np.ndarray, p: np.ndarray, params: Any) -> dict[str, np.ndarray]:
+    """The analytic rod's values of the six gradient-GP targets at states q, p (n_t, N+1, 3):
+    q_x, q_y (segments: the rod's own stress resultants, features.q_from_hz of its H_x, H_y),
+    dH_dtheta at nodes 1..N (-F_theta / (w ds)), dH_dp_* = p / (rho A), p_theta / (rho I)."""
+    from .rod import internal_forces, strains
+
+    st = strains(q, params)
+    wds = node_weights(params.N) * params.ds
+    F = np.array([internal_forces(qq, params, float(q[0, 0, 2]))[0] for qq in q])
+    return {"q_x": st["q_x"], "q_y": st["q_y"], "dH_dtheta": -F[:, 1:, 2] / wds[1:],
+            "dH_dp_x": p[:, 1:, 0] / params.rhoA, "dH_dp_y": p[:, 1:, 1] / params.rhoA,
+            "dH_dp_theta": p[:, 1:, 2] / params.rhoI}
+
+
+def function_calibration(cfg: dict[str, Any], model_stems: dict[str, str], gt_paths: dict[int, str],
+                         out_csv: str | Path, n_times: int = 200) -> pd.DataFrame:
+    """Is each gradient GP's posterior calibrated where the test rollouts go? At ``n_times``
+    ground-truth states per test angle: z = (true target - rollout mean) / posterior sd (the
+    sampler's predictive sd: DTC for the multi-input GPs, exact for the 1D ones), and the
+    fraction with |z| < 1.96 (0.95 if calibrated). Poor function-level coverage means the
+    trajectory band cannot cover the truth, whatever S and D."""
+    from .config import rod_params
+    from .simulate import trajectory_from_frame
+
+    params = rod_params(cfg)
+    specs = {m: load_gp_spec(s, m) for m, s in model_stems.items()}
+    metas = {m: json.loads(Path(s).with_suffix(".json").read_text()) for m, s in model_stems.items()}
+    center = metas["q_x"].get("theta_center")
+    preds = {}
+    for m, (spec, Z, _) in specs.items():
+        if Z is not None:
+            preds[m] = ("dtc", sparse_posterior(spec, Z), spec)
+        else:
+            preds[m] = ("exact", exact_posterior(spec), spec)
+    rows = []
+    for angle, path in sorted(gt_paths.items()):
+        traj = trajectory_from_frame(read_parquet(path, required=TRAJECTORY_COLUMNS), params)
+        k = np.unique(np.linspace(1, len(traj.t) - 1, n_times).round().astype(int))
+        q, p = traj.q[k], traj.p[k]
+        x, y, th = q[..., 0], q[..., 1], q[..., 2]
+        feats = {"q_x": ft.paper_q_features(x, y, th, params.ds, center),
+                 "dH_dtheta": ft.paper_theta_features(x, y, th, params.ds, center)}
+        feats["q_y"] = feats["q_x"]
+        for j, m in enumerate(MOMENTUM):
+            feats[m] = p[:, 1:, j:j + 1]
+        truth = true_targets(q, p, params)
+        for m, (kind, post, spec) in preds.items():
+            X = feats[m].reshape(-1, feats[m].shape[-1])
+            mean, var = post.mean_var(X)
+            ra = getattr(spec, "rollout_arrays", {})
+            if kind == "dtc" and "dtc_w" in ra:  # centre = the rollout's mean model
+                from .rff import se_kernel
+
+                xs = spec.standardise(X)
+                mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.lengthscales)
+                                      @ np.ravel(ra["dtc_w"]) + spec.basis_fn(xs) @ np.ravel(ra["dtc_beta"]))
+            sd = np.sqrt(np.maximum(var, 1e-300))
+            z = (truth[m].reshape(-1) - mean) / sd
+            rows.append({"theta0_deg": angle, "model": m, "n_points": int(z.size),
+                         "coverage_95": float(np.mean(np.abs(z) < 1.959964)),
+                         "median_abs_z": float(np.median(np.abs(z))),
+                         "rmse": float(np.sqrt(np.mean((truth[m].reshape(-1) - mean) ** 2))),
+                         "median_sd": float(np.median(sd)),
+                         "target_std": float(np.std(truth[m]))})
+    df = pd.DataFrame(rows)
+    write_csv(df.round(6), out_csv)
+    log.info("function-level calibration:\n%s", df.to_string())
+    return df
+
+
+def calibration_rule(cfg: dict[str, Any], models: list[str], gt_paths: list[str], out: str) -> None:
+    """Rule ``uq_calibration``."""
+    stems = {Path(m).stem: str(Path(m).with_suffix("")) for m in models}
+    function_calibration(cfg, stems, {int(Path(p).stem): p for p in gt_paths}, out)

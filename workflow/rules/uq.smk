@@ -75,6 +75,28 @@ rule uq_coverage:
         "../scripts/uq_coverage.py"
 
 
+rule uq_calibration:
+    input:
+        code=UQ_LIB + lib("rod", "simulate", "features", "prefilter"),
+        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
+        meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+        ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
+    output:
+        f"{RESULTS}/tables/uq_function_calibration.csv",
+    log:
+        "logs/uq/calibration.log",
+    benchmark:
+        "benchmarks/uq/calibration.tsv"
+    threads: 1
+    resources:
+        mem_mb=6000,
+        runtime=15,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_calibration.py"
+
+
 rule uq_figure:
     input:
         code=UQ_LIB,
@@ -102,6 +124,7 @@ rule uq_figure:
 ALL_TARGETS.extend(
     [
         f"{RESULTS}/tables/uq_coverage.csv",
+        f"{RESULTS}/tables/uq_function_calibration.csv",
         f"{RESULTS}/figures/uq_band_{UQ['figure_angle_deg']}.png",
     ]
 )
