@@ -11,6 +11,7 @@ import sys
 COMMAND_MODULES: list[str] = [
     "crgpr.ground_truth",
     "crgpr.paper",
+    "crgpr.discovery",
     "crgpr.prefilter",
     "crgpr.gradient_models",
     "crgpr.learned",
