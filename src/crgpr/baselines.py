@@ -126,7 +126,7 @@ def plot_baselines(df: pd.DataFrame, out: str | Path) -> None:
         ok = np.isfinite(pv)
         if ok.any():
             ax.scatter(x[ok] + (k - 1) * width, pv[ok], marker="_", s=260, color="black", zorder=3,
-                       label=f"paper {METRIC_LABELS[m]}" if k == 0 else None)
+                       label="paper value" if k == 0 else None)
     labels = [f"{lab}\n($N_{{init}}$={n})" for lab, n in zip(df["label"], df["n_init"], strict=True)]
     ax.set_xticks(x, labels, fontsize=8)
     ax.set_yscale("log")
@@ -172,11 +172,13 @@ def rule(cfg: dict[str, Any], accuracy: str, rollouts: dict[str, list[str]], gro
              f"Mean over the test angles {angles} deg; metrics from results/metrics/accuracy.parquet.", ""]
     lines += [f"- {n}" for n in ordering_notes(df)]
     for _, r in df.iterrows():
-        if r.get("n_diverged", 0):
+        if pd.notna(r.get("n_diverged")) and r["n_diverged"] > 0:
             lines.append(f"- {r['method']}: {int(r['n_diverged'])} rollout(s) diverged ({r['diverged_at']}); "
                          "scored with the state frozen at the last plausible record.")
-        if r["method"].startswith("pinn") and np.isfinite(r.get("motion_ratio", np.nan)):
-            still = " (nearly stationary, as the paper reports)." if r["motion_ratio"] < 0.1 else "."
+        if r["method"].startswith("pinn") and pd.notna(r.get("motion_ratio")):
+            still = "." if r["motion_ratio"] >= 0.1 else (
+                " (nearly stationary, as the paper reports)." if r["method"] == "pinn_physics"
+                else " (nearly stationary at these unseen angles).")
             lines.append(f"- {r['method']}: predicted motion RMS(theta - theta0) is "
                          f"{r['motion_ratio']:.3g} x the ground truth's{still}")
     write_text("\n".join(lines) + "\n", notes)
