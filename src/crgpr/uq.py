@@ -23,6 +23,10 @@ Stages (rules in workflow/rules/uq.smk):
                  tip-position coverage (x and y of the tip both inside their bands,
                  ``tip_coverage``), band widths and RMSE of the band centre.
                  ``results/uq/coverage.parquet`` and ``results/tables/uq_coverage.csv``.
+``uq_calibration`` Function-level check of each gradient GP at the ground-truth states of the
+                 test angles: z = (analytic target - rollout mean) / posterior sd and the
+                 fraction with |z| < 1.96 (``results/tables/uq_function_calibration.csv``).
+                 A trajectory band can only cover the truth if the functions' bands do.
 ``uq_figure``    Rod configurations at four time instants with the 95 % band shaded and the
                  ground truth dashed (``results/figures/uq_band_{angle}.png``).
 
