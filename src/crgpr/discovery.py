@@ -549,20 +549,36 @@ def discover(meas: Measured, cfg: dict[str, Any], st: DiscoverySettings | None =
         if gap_before <= st.min_gap_rad:
             break
         added = False
-        for gain, k, f in [r for r in ranked if r[0] >= st.bic_min_improvement][:st.max_confirm]:
-            names = cur.names + [k]
-            x0 = np.concatenate([cur.coef, f.coef])
-            xs = np.concatenate([cur.std, f.std])
-            cand = fitter.fit(names, x0, xs, st.refine_max_nfev)
-            dbic = trajectory_delta_bic(cur, cand)
-            closes = cur.rmse - cand.rmse >= st.min_effect_fraction * gap_before
-            ok = dbic >= st.bic_min_improvement and closes
-            step["confirmation"].append({"effect": k, "residual_bic_gain": gain, "rmse": cand.rmse,
-                                         "trajectory_delta_bic": dbic, "accepted": ok, "nfev": cand.nfev})
-            log.info("trajectory fit %s: RMSE %.4f, delta BIC %.1f, accepted %s", names, cand.rmse, dbic, ok)
-            if ok:
-                cur = cand
-                accepted.append(cand)
+        screened = [r for r in ranked if r[0] >= st.bic_min_improvement][:st.max_confirm]
+        if not screened and not cur.names:
+            break  # the residual shows no candidate at all: nothing to confirm
+        # the residual's best candidates first; if none holds up in the trajectory fit, the
+        # remaining candidates are tried by the trajectory likelihood ratio alone
+        rest = [r for r in ranked if r not in screened] if cur.names else []
+        for group in (screened, rest):
+            best = None
+            for gain, k, f in group:
+                names = cur.names + [k]
+                c_reg = f.coef.copy()
+                if c_reg[0] == 0.0 and EFFECTS[k].reg_lo == 0.0:  # at its bound: start inside
+                    c_reg[0] = max(float(f.std[0]), 1e-6)
+                x0 = np.concatenate([cur.coef, c_reg])
+                xs = np.concatenate([cur.std, f.std])
+                cand = fitter.fit(names, x0, xs, st.refine_max_nfev)
+                dbic = trajectory_delta_bic(cur, cand)
+                closes = cur.rmse - cand.rmse >= st.min_effect_fraction * gap_before
+                ok = dbic >= st.bic_min_improvement and closes
+                step["confirmation"].append({"effect": k, "residual_bic_gain": gain, "rmse": cand.rmse,
+                                             "trajectory_delta_bic": dbic, "accepted": False,
+                                             "nfev": cand.nfev})
+                log.info("trajectory fit %s: RMSE %.4f, delta BIC %.1f, acceptable %s", names, cand.rmse,
+                         dbic, ok)
+                if ok and (best is None or cand.rss < best[0].rss):
+                    best = (cand, len(step["confirmation"]) - 1)
+            if best is not None:  # the best confirmed candidate of the group enters
+                cur = best[0]
+                accepted.append(cur)
+                step["confirmation"][best[1]]["accepted"] = True
                 added = True
                 break
         if not added or len(cur.names) >= st.max_effects:
