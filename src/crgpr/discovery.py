@@ -937,14 +937,16 @@ def rule_summary(cfg: dict[str, Any], cases: list[str], truths: list[str], resul
     ax.bar(x - 0.2, df["gap_before_rad"], 0.4, color="C3", label="nominal model")
     ax.bar(x + 0.2, df["gap_after_rad"], 0.4, color="C0", label="after discovery")
     for i, r in df.iterrows():
-        ax.text(i, max(r["gap_before_rad"], r["gap_after_rad"]) * 1.1, r["verdict"], ha="center",
-                fontsize=7, rotation=90, va="bottom")
+        ax.text(i, max(r["gap_before_rad"], r["gap_after_rad"]) * 1.15, r["verdict"], ha="center",
+                fontsize=7, va="bottom")
     ax.set_yscale("log")
+    lo = float(np.nanmin(np.r_[df["gap_after_rad"], df["gap_before_rad"]]))
+    ax.set_ylim(0.5 * lo, 8.0 * float(np.nanmax(df["gap_before_rad"])))
     ax.set_xticks(x, df["case"], rotation=30, ha="right")
     ax.set_ylabel("RMSE theta [rad]")
     ax.axhline(float(cfg["discovery"]["min_gap_rad"]), color="k", ls=":", lw=1, label="min_gap_rad")
     ax.set_title("Missing-physics discovery: the gap before and after adding the named effect")
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=8, loc="upper right", ncol=3)
     with atomic_path(out_fig, ".png") as tmp:
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
