@@ -108,7 +108,7 @@ def test_baseline_table_means_paper_columns_and_ordering(tmp_path):
     import pandas as pd
 
     df = baselines.baseline_table(pd.DataFrame(rows), angles)
-    assert list(df["method"]) == list(baselines.ORDER)
+    assert list(df["method"]) == [m for m in baselines.ORDER if m in vals]  # present ones, in order
     r = df.set_index("method")
     assert r.loc["pinn_data_8", "rmse_theta"] == pytest.approx(0.2 * 1.25)
     assert r.loc["blackbox_gp", "paper_rmse_theta"] == 4.559

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from crgpr.io import read_metadata, read_parquet
@@ -47,6 +48,29 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
         assert read_metadata(gt / f"{angle}.parquet")["rod"]["N"] == 10
         e = read_parquet(gt / f"{angle}_energy.parquet", ["t", "H", "dissipation_rate"])
         assert np.all(e["dissipation_rate"] >= 0)
+    # the final products of every stage exist with their schema
+    res = smoke_run / "results"
+    acc = read_parquet(res / "metrics" / "accuracy.parquet",
+                       ["method", "theta0_deg", "rmse_theta", "r2_theta", "tip_rmse_over_L", "group_nrmse"])
+    assert {"cr_gpr", "cr_gpr_fd", "cr_gpr_objective", "blackbox_gp", "pinn_physics", "pinn_data_1",
+            "pinn_data_8"} <= set(acc["method"])
+    assert set(acc["theta0_deg"]) == {60.0, 125.0}
+    assert np.all(acc["rmse_theta"] >= 0)
+    tables = res / "tables"
+    for name, cols in {
+        "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
+        "table4_ablation.csv": [], "baselines.csv": [], "uq_coverage.csv": ["angle", "theta_coverage"],
+        "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
+        "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
+                                      "verdict"],
+    }.items():
+        df = pd.read_csv(tables / name)
+        assert len(df) > 0, name
+        assert set(cols) <= set(df.columns), (name, list(df.columns))
+    assert (tables / "paper_vs_reproduction.md").read_text().startswith("# Paper vs reproduction")
+    pngs = list((res / "figures").glob("*.png"))
+    assert len(pngs) >= 5
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
     # every rule left a benchmark file and a log
     assert (smoke_run / "benchmarks" / "ground_truth" / "85.tsv").exists()
     assert (smoke_run / "logs" / "ground_truth" / "85.log").exists()

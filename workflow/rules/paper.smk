@@ -48,7 +48,7 @@ rule timing:
 rule paper_tables:
     input:
         code=lib("paper"),
-        values="workflow/paper_values.yaml",
+        values=str(BASE / "workflow" / "paper_values.yaml"),
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
         hyper=f"{RESULTS}/tables/table2_hyperparameters.csv",
         timing=f"{RESULTS}/metrics/timing.parquet",
