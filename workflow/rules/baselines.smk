@@ -123,9 +123,17 @@ rule baselines_table:
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
         histories=expand(f"{RESULTS}/baselines/pinn/{{variant}}_loss.parquet", variant=PINN_VARIANTS),
     output:
-        table=f"{RESULTS}/tables/baselines.csv",
+        table=report(
+            f"{RESULTS}/tables/baselines.csv",
+            caption="../report/baselines_table.rst",
+            category="Baselines",
+        ),
         notes=f"{RESULTS}/tables/baselines_notes.md",
-        figure=f"{RESULTS}/figures/baselines.png",
+        figure=report(
+            f"{RESULTS}/figures/baselines.png",
+            caption="../report/baselines_figure.rst",
+            category="Baselines",
+        ),
     params:
         methods=BASELINE_METHODS,
         variants=PINN_VARIANTS,

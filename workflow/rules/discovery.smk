@@ -58,8 +58,16 @@ rule discovery_summary:
         results=expand(f"{RESULTS}/discovery/{{case}}/discovery.json", case=DISCOVERY_CASES),
         code=lib(*DISCOVERY_CODE),
     output:
-        table=f"{RESULTS}/tables/discovery.csv",
-        figure=f"{RESULTS}/figures/discovery_gap.png",
+        table=report(
+            f"{RESULTS}/tables/discovery.csv",
+            caption="../report/discovery_table.rst",
+            category="Missing physics",
+        ),
+        figure=report(
+            f"{RESULTS}/figures/discovery_gap.png",
+            caption="../report/discovery_figure.rst",
+            category="Missing physics",
+        ),
     params:
         cases=DISCOVERY_CASES,
     log:

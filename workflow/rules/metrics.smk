@@ -10,8 +10,16 @@ rule metrics:
                                    method=ROLLOUT_METHODS, angle=config["angles"]["test_deg"]),
     output:
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
-        table1=f"{RESULTS}/tables/table1_accuracy.csv",
-        table4=f"{RESULTS}/tables/table4_ablation.csv",
+        table1=report(
+            f"{RESULTS}/tables/table1_accuracy.csv",
+            caption="../report/table1.rst",
+            category="CR-GPR (Tables I, II, IV)",
+        ),
+        table4=report(
+            f"{RESULTS}/tables/table4_ablation.csv",
+            caption="../report/table4.rst",
+            category="CR-GPR (Tables I, II, IV)",
+        ),
     params:
         methods=lambda wc: list(ROLLOUT_METHODS),
     log:
@@ -40,9 +48,21 @@ rule figures_crgpr:
         rollout=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
         rollout_energy=f"{RESULTS}/rollouts/{{method}}/{{angle}}_energy.parquet",
     output:
-        overlays=f"{RESULTS}/figures/{{method}}_overlays_{{angle}}.png",
-        shapes=f"{RESULTS}/figures/{{method}}_shapes_{{angle}}.png",
-        energy=f"{RESULTS}/figures/{{method}}_energy_{{angle}}.png",
+        overlays=report(
+            f"{RESULTS}/figures/{{method}}_overlays_{{angle}}.png",
+            caption="../report/crgpr_overlays.rst",
+            category="CR-GPR figures",
+        ),
+        shapes=report(
+            f"{RESULTS}/figures/{{method}}_shapes_{{angle}}.png",
+            caption="../report/crgpr_shapes.rst",
+            category="CR-GPR figures",
+        ),
+        energy=report(
+            f"{RESULTS}/figures/{{method}}_energy_{{angle}}.png",
+            caption="../report/crgpr_energy.rst",
+            category="CR-GPR figures",
+        ),
     wildcard_constraints:
         method="|".join(CRGPR_METHODS),
         angle=r"-?\d+",

@@ -36,7 +36,11 @@ rule table2:
         code=lib("gradient_models", "smk"),
         models=MODEL_JSONS,
     output:
-        f"{RESULTS}/tables/table2_hyperparameters.csv",
+        report(
+            f"{RESULTS}/tables/table2_hyperparameters.csv",
+            caption="../report/table2.rst",
+            category="CR-GPR (Tables I, II, IV)",
+        ),
     log:
         "logs/tables/table2.log",
     benchmark:

@@ -60,7 +60,11 @@ rule uq_coverage:
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
         coverage=f"{RESULTS}/uq/coverage.parquet",
-        table=f"{RESULTS}/tables/uq_coverage.csv",
+        table=report(
+            f"{RESULTS}/tables/uq_coverage.csv",
+            caption="../report/uq_coverage.rst",
+            category="Uncertainty (RFF)",
+        ),
     log:
         "logs/uq/coverage.log",
     benchmark:
@@ -82,7 +86,11 @@ rule uq_calibration:
         meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
-        f"{RESULTS}/tables/uq_function_calibration.csv",
+        report(
+            f"{RESULTS}/tables/uq_function_calibration.csv",
+            caption="../report/uq_calibration.rst",
+            category="Uncertainty (RFF)",
+        ),
     log:
         "logs/uq/calibration.log",
     benchmark:
@@ -104,7 +112,11 @@ rule uq_figure:
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
         mean_model=f"{RESULTS}/rollouts/{UQ['method']}/{{angle}}.parquet",
     output:
-        f"{RESULTS}/figures/uq_band_{{angle}}.png",
+        report(
+            f"{RESULTS}/figures/uq_band_{{angle}}.png",
+            caption="../report/uq_band.rst",
+            category="Uncertainty (RFF)",
+        ),
     wildcard_constraints:
         angle=r"-?\d+",
     log:
