@@ -17,7 +17,7 @@ import pytest
 
 from crgpr import cli
 from crgpr.config import load_config
-from crgpr.discovery import make_measured, run_discovery, stable_dt
+from crgpr.discovery import make_measured, run_discovery
 from crgpr.effects import EFFECT_NAMES, EFFECTS, residual
 from crgpr.io import write_parquet
 from crgpr.params import RodParams, SimSettings
@@ -95,7 +95,7 @@ def test_augmented_model_stays_passive(effects):
     """Energy balance H(t) + dissipated(t) = H(0) and dH/dt <= 0 (conservative terms in H,
     drag in R, tip weight in G u): no effect injects energy."""
     pr = RodParams(N=10).replace(**effects)
-    dt = min(1e-4, 0.8 * stable_dt(pr))
+    dt = min(1e-4, 0.8 * pr.dt_stable())
     tr = simulate(85.0, pr, SimSettings(dt, 0.3, max(1, round(2e-3 / dt))))
     e = energy(tr)
     H, D = e["H"], tr.dissipated
@@ -109,17 +109,17 @@ def test_augmented_model_stays_passive(effects):
 def test_conservative_effects_conserve_energy_without_damping():
     pr = RodParams(N=10, zeta=0.0).replace(tip_mass=0.01, nonlinear_stiffness=0.01, kappa0=1.0,
                                              stiffness_gradient=0.5, base_spring=0.3)
-    dt = min(1e-4, 0.8 * stable_dt(pr))
+    dt = min(1e-4, 0.8 * pr.dt_stable())
     tr = simulate(85.0, pr, SimSettings(dt, 0.3, 20))
     H = energy(tr)["H"]
     assert np.max(np.abs(H - H[0])) < 2e-3 * float(np.ptp(energy(tr)["gravity"]))
 
 
 def test_stable_dt_accounts_for_a_stiff_base_spring():
-    """RodParams.dt_stable ignores the base spring; stable_dt adds its row and is enough."""
+    """RodParams.dt_stable includes the base spring's row, and that bound is enough."""
     pr = RodParams(N=10).replace(base_spring=20.0)
-    assert stable_dt(pr) < pr.dt_stable()
-    tr = simulate(85.0, pr, SimSettings(0.9 * stable_dt(pr), 0.05, 10))
+    assert pr.dt_stable() < RodParams(N=10).dt_stable()
+    tr = simulate(85.0, pr, SimSettings(0.9 * pr.dt_stable(), 0.05, 10))
     assert np.all(np.isfinite(tr.q))
 
 

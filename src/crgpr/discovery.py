@@ -98,22 +98,10 @@ class DiscoverySettings:
 # ------------------------------------------------------------------------------------------------
 # simulation helpers
 # ------------------------------------------------------------------------------------------------
-def stable_dt(params: RodParams) -> float:
-    """Stormer-Verlet step bound 2 / omega_max including a base spring's row.
-
-    ``RodParams.dt_stable`` covers the rod; a base spring k adds 2 k / (rho I ds) to the
-    Gershgorin bound of the base node's rotational row (half a segment of inertia).
-    """
-    w2 = params.max_frequency() ** 2
-    if not params.clamped:
-        w2 += 2.0 * params.base_spring / (params.rhoI * params.ds)
-    return 2.0 / math.sqrt(w2)
-
-
 def aligned_settings(params: RodParams, dt_max: float, period: float, n_samples: int,
                      safety: float = 0.8) -> SimSettings:
     """Time step <= dt_max (and stable) that divides the sampling period exactly."""
-    dt = min(dt_max, safety * stable_dt(params))
+    dt = min(dt_max, safety * params.dt_stable())
     every = max(1, math.ceil(period / dt - 1e-9))
     dt = period / every
     return SimSettings(dt=dt, t_end=(n_samples - 1) * period, record_every=every)

@@ -32,6 +32,7 @@ from .rod import _internal_forces
 
 # Guard rails: a state beyond these is a diverged run, not physics.
 MAX_SPEED = 1.0e3  # [m/s] or [rad/s]
+MAX_COORD = 1.0e6  # [m] or [rad]
 
 
 class SimulationDiverged(RuntimeError):
@@ -107,7 +108,7 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             bad = False
             for i in range(n):
                 for c in range(3):
-                    if not (abs(v[i, c]) < 1.0e3) or not (abs(q[i, c]) < 1.0e6):
+                    if not (abs(v[i, c]) < MAX_SPEED) or not (abs(q[i, c]) < MAX_COORD):
                         bad = True
             if bad:
                 return k
@@ -268,8 +269,8 @@ def run_hamiltonian(
             r = k // every
             v = velocity(p)
             if not (np.all(np.isfinite(v)) and np.all(np.isfinite(q)) and np.all(np.abs(v) < MAX_SPEED)
-                    and np.all(np.abs(q) < 1.0e6)):
-                node = _locate_failure(np.where(np.abs(q) < 1.0e6, q, np.nan), v)
+                    and np.all(np.abs(q) < MAX_COORD)):
+                node = _locate_failure(np.where(np.abs(q) < MAX_COORD, q, np.nan), v)
                 raise SimulationDiverged(
                     f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: "
                     f"state non-finite or speed > {MAX_SPEED:g}.", k, k * dt, node)

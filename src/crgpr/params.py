@@ -117,11 +117,15 @@ class RodParams:
 
         Translational rows: 4 max(EA, GA) / (rhoA ds^2); rotational rows:
         4 E / (rho ds^2) + GA / (rho I) (bending plus the shear couple of the
-        mid-segment angle). Used to reject a time step that cannot be stable.
+        mid-segment angle); a base spring k adds 2 k / (rho I ds) to the base node's
+        rotational row (half a segment of inertia). Used to reject a time step that
+        cannot be stable.
         """
         ds = self.ds
         w2_t = 4.0 * max(self.EA, self.GA) / (self.rhoA * ds**2)
         w2_r = 4.0 * self.E / (self.rho * ds**2) + self.GA / self.rhoI
+        if not self.clamped:
+            w2_r += 2.0 * self.base_spring / (self.rhoI * ds)
         return math.sqrt(max(w2_t, w2_r))
 
     def dt_stable(self) -> float:
