@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -154,4 +154,3 @@ class SimSettings:
 
 
 PARAM_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(RodParams))
-_ = field  # re-exported for typing helpers
