@@ -3,7 +3,7 @@
     python benchmarks/bench_simulator.py [--repeats 20]
 
 Reports the JIT warm-up once, then min / median / max over repeated runs of
-``crgpr.simulate.simulate(85)`` with the paper's settings (dt = 1e-4 s, T = 2 s).
+``crgpr.physics.simulate.simulate(85)`` with the paper's settings (dt = 1e-4 s, T = 2 s).
 The whole ground-truth stage is measured by Snakemake's own benchmark files:
 ``snakemake -j2 --forcerun ground_truth all`` then ``benchmarks/ground_truth/*.tsv``.
 """
@@ -14,8 +14,8 @@ import argparse
 import statistics
 import time
 
-from crgpr.params import RodParams, SimSettings
-from crgpr.simulate import simulate
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import simulate
 
 
 def main() -> None:

@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from crgpr.params import RodParams, SimSettings
-from crgpr.rod import node_weights, strains
-from crgpr.simulate import energy, simulate
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import node_weights, strains
+from crgpr.physics.simulate import energy, simulate
 
 
 def main() -> None:

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crgpr import blackbox
+from crgpr.baselines import blackbox
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata, read_parquet, write_parquet
-from crgpr.params import SimSettings
-from crgpr.prefilter import PrefilterSettings, prefilter
-from crgpr.rod import straight_rod
-from crgpr.simulate import TRAJECTORY_COLUMNS, simulate
+from crgpr.learning.prefilter import PrefilterSettings, prefilter
+from crgpr.physics.params import SimSettings
+from crgpr.physics.rod import straight_rod
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, simulate
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -96,7 +96,7 @@ def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):
 
 def test_baseline_table_means_paper_columns_and_ordering(tmp_path):
     """The comparison table averages over the test angles and reports the ordering honestly."""
-    from crgpr import baselines
+    from crgpr.report import comparison as baselines
 
     angles = [60, 125]
     vals = {"blackbox_gp": 3.0, "pinn_physics": 1.7, "pinn_data_1": 1.6, "pinn_data_8": 0.2, "cr_gpr": 0.4}

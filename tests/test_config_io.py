@@ -11,8 +11,8 @@ import pytest
 from crgpr.cli import main
 from crgpr.config import ConfigError, load_config, rod_params, sim_settings
 from crgpr.io import load_npz, read_metadata, read_parquet, write_npz, write_parquet
-from crgpr.params import RodParams, SimSettings
-from crgpr.simulate import TRAJECTORY_COLUMNS
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config.yaml"

@@ -17,12 +17,12 @@ import pytest
 
 from crgpr import cli
 from crgpr.config import load_config
-from crgpr.discovery import make_measured, run_discovery
-from crgpr.effects import EFFECT_NAMES, EFFECTS, residual
+from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS, residual
+from crgpr.discovery.selection import make_measured, run_discovery
 from crgpr.io import write_parquet
-from crgpr.params import RodParams, SimSettings
-from crgpr.rod import internal_forces, masses, node_weights
-from crgpr.simulate import energy, simulate, velocities
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import internal_forces, masses, node_weights
+from crgpr.physics.simulate import energy, simulate, velocities
 
 ROOT = Path(__file__).resolve().parents[1]
 SEVEN = ("viscous_drag", "air_drag", "tip_mass", "nonlinear_stiffness", "rest_curvature",

@@ -1,4 +1,4 @@
-"""GP regression (crgpr.gp) against closed forms (R&W Sec. 2.7) and finite differences."""
+"""GP regression (crgpr.gp._gpr) against closed forms (R&W Sec. 2.7) and finite differences."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import approx_fprime
 
-from crgpr.gp import GP, _neg_lml, basis_matrix_std, fit_gp, kernel_matrix, smooth_series
+from crgpr.gp._gpr import GP, _neg_lml, basis_matrix_std, fit_gp, kernel_matrix, smooth_series
 
 
 def _hand_gp(U, v, Us, kernel, sf, ell, sn, Hfun):

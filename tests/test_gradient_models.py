@@ -1,4 +1,4 @@
-"""Stage 2 (crgpr.features, crgpr.gradient_models): targets, training on the smoke config, files."""
+"""Stage 2 (crgpr.learning.features, .gradient_models): targets, training on the smoke config, files."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crgpr import features as ft
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.gp import fit_gp
-from crgpr.gradient_models import (
+from crgpr.learning import features as ft
+from crgpr.learning.gradient_models import (
     PAPER_MODELS,
     _gp_like,
     dtc_fit,
@@ -19,9 +19,9 @@ from crgpr.gradient_models import (
     table2,
     train_model,
 )
-from crgpr.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
-from crgpr.rod import strains, variational_derivative
-from crgpr.simulate import simulate
+from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
+from crgpr.physics.rod import strains, variational_derivative
+from crgpr.physics.simulate import simulate
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -108,7 +108,7 @@ def test_train_models_on_smoke_prefilter(smoke, tmp_path):
     assert metas[0]["theta_center"] is not None and metas[2]["theta_center"] is not None
     # the objective n1 model recovers the axial stiffness EA = dn1/dnu1 from data alone
     P = rod_params(cfg)
-    from crgpr.learned import Approx
+    from crgpr.learning.learned import Approx
 
     n1 = Approx(tmp_path / "obj_n1")
     slope = (n1(np.array([[1.001, 0.0, 0.0]])) - n1(np.array([[0.999, 0.0, 0.0]])))[0] / 0.002

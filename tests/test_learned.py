@@ -1,4 +1,4 @@
-"""Stage 3 (crgpr.learned, integrator.run_hamiltonian): the learned-model rollout."""
+"""Stage 3 (crgpr.learning.learned, integrator.run_hamiltonian): the learned-model rollout."""
 
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from crgpr.config import load_config, rod_params, sim_settings
-from crgpr.gradient_models import train_model
-from crgpr.integrator import SimulationDiverged, run_hamiltonian
-from crgpr.learned import LearnedRod, learned_energy, rollout, run_rollout
-from crgpr.params import RodParams, SimSettings
-from crgpr.prefilter import PrefilterSettings, fd_prefilter
-from crgpr.rod import free_mask, internal_forces, node_weights, straight_rod
-from crgpr.simulate import simulate
+from crgpr.learning.gradient_models import train_model
+from crgpr.learning.learned import LearnedRod, learned_energy, rollout, run_rollout
+from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter
+from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, internal_forces, node_weights, straight_rod
+from crgpr.physics.simulate import simulate
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -67,7 +67,7 @@ def trained(tmp_path_factory):
 def test_objective_model_reproduces_its_training_trajectory(trained):
     cfg, traj, d = trained
     P, S = rod_params(cfg), sim_settings(cfg)
-    model = LearnedRod(d, "objective", P)
+    model = LearnedRod.from_dir(d, "objective", P)
     roll = rollout(model, 85.0, S)
     err = roll.q[:, 1:, 2] - traj.q[:, 1:, 2]
     assert np.sqrt(np.mean(err**2)) < 0.02  # rad over the whole record
@@ -82,7 +82,7 @@ def test_objective_model_reproduces_its_training_trajectory(trained):
 def test_paper_model_runs_and_tracks_training_start(trained):
     cfg, traj, d = trained
     P, S = rod_params(cfg), sim_settings(cfg)
-    roll = rollout(LearnedRod(d, "paper", P), 85.0, SimSettings(S.dt, 0.05, S.record_every))
+    roll = rollout(LearnedRod.from_dir(d, "paper", P), 85.0, SimSettings(S.dt, 0.05, S.record_every))
     n = roll.t.size
     err = roll.q[:, 1:, 2] - traj.q[:n, 1:, 2]
     assert np.all(np.isfinite(roll.q))

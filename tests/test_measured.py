@@ -8,8 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from crgpr.io import write_parquet
-from crgpr.measured import (
+from crgpr.discovery.measured import (
     MeasuredDataError,
     camera_frame,
     load_measured,
@@ -18,8 +17,9 @@ from crgpr.measured import (
     smooth_kinematics,
     validate_frame,
 )
-from crgpr.params import RodParams, SimSettings
-from crgpr.simulate import simulate, velocities
+from crgpr.io import write_parquet
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import simulate, velocities
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Accuracy metrics (crgpr.metrics) against hand-computed values (paper Sec. V definitions)."""
+"""Accuracy metrics (crgpr.report.metrics) against hand-computed values (paper Sec. V definitions)."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from crgpr.metrics import ACCURACY_COLUMNS, accuracy, accuracy_table, table1, table4
-from crgpr.params import RodParams, SimSettings
-from crgpr.simulate import simulate, trajectory_frame
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import simulate, trajectory_frame
+from crgpr.report.metrics import ACCURACY_COLUMNS, accuracy, accuracy_table, table1, table4
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""crgpr.paper: tolerance bands, references and the claim language, on synthetic numbers."""
+"""crgpr.report.paper: tolerance bands, references and the claim language, on synthetic numbers."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from crgpr.paper import (
+from crgpr.report.paper import (
     FAILS,
     HOLDS,
     MATCH,

@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from crgpr.paper import FAILS, HOLDS, MATCH, OUTSIDE, build, in_band, load_values
+from crgpr.report.paper import FAILS, HOLDS, MATCH, OUTSIDE, build, in_band, load_values
 
 ROOT = Path(__file__).resolve().parents[1]
 RES = ROOT / "results"

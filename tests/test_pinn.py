@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import torch
 
-from crgpr import pinn
+from crgpr.baselines import pinn
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_parquet, write_parquet
-from crgpr.params import RodParams
-from crgpr.rod import variational_derivative
-from crgpr.simulate import TRAJECTORY_COLUMNS, simulate, trajectory_frame
+from crgpr.physics.params import RodParams
+from crgpr.physics.rod import variational_derivative
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, simulate, trajectory_frame
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -58,7 +58,7 @@ def _residual_of(q, p, rate, z_s, z_ss, params):
 def test_residual_vanishes_on_the_simulator_right_hand_side():
     """The continuous residual of the exact field is small where dz/dt is the simulator's RHS.
 
-    On a fine grid the discrete H_z of crgpr.rod converges to the continuous one (O(ds^2)), so
+    On a fine grid the discrete H_z of crgpr.physics.rod converges to the continuous one (O(ds^2)), so
     the residual must be tiny compared with the size of the terms; a 10 % change of the momentum
     rate, or the paper's sign of the couple term, gives an O(1) residual.
     """

@@ -1,4 +1,4 @@
-"""Stage 1 prefilter (crgpr.prefilter) on the smoke configuration and synthetic series."""
+"""Stage 1 prefilter (crgpr.learning.prefilter) on the smoke configuration and synthetic series."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata
-from crgpr.prefilter import (
+from crgpr.learning.prefilter import (
     PREFILTER_COLUMNS,
     PrefilterSettings,
     fd_prefilter,
@@ -19,7 +19,7 @@ from crgpr.prefilter import (
     smooth_series,
     spatial_derivatives,
 )
-from crgpr.simulate import simulate, trajectory_frame
+from crgpr.physics.simulate import simulate, trajectory_frame
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 

@@ -1,4 +1,4 @@
-"""RFF / pathwise posterior samples of SE and ARD-SE GPs with explicit bases (crgpr.rff).
+"""RFF / pathwise posterior samples of SE and ARD-SE GPs with explicit bases (crgpr.gp.sampling).
 
 Small synthetic problems: exact formulas (R&W eq. 2.42) are the reference.
 """
@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from crgpr.gp import fit_gp
-from crgpr.io import load_npz, write_npz
-from crgpr.rff import (
+from crgpr.gp.sampling import (
     CompressedSamples,
     GPSpec,
     compress,
@@ -24,6 +23,7 @@ from crgpr.rff import (
     sparse_posterior,
     weight_space_samples,
 )
+from crgpr.io import load_npz, write_npz
 
 
 def _problem(basis: str, ard: bool, seed: int = 0, n: int = 120):
@@ -128,7 +128,7 @@ def test_compression_converges_and_roundtrips(tmp_path) -> None:
 
 
 def test_from_fitted_gp_matches_gp_predictions() -> None:
-    """posterior_from_gp reuses crgpr.gp's factors: same mean and variance as GP.predict, and
+    """posterior_from_gp reuses crgpr.gp._gpr's factors: same mean and variance as GP.predict, and
     samples centre on it."""
     rng = np.random.default_rng(0)
     X = rng.uniform(-1.0, 1.0, (80, 3))
@@ -174,7 +174,7 @@ def test_sparse_pathwise_samples(basis: str) -> None:
 def test_compiled_cosine_and_sample_evaluation() -> None:
     """The polynomial cosine of the compiled RFF sums agrees with libm; compressed samples
     agree with a direct numpy evaluation of their formula."""
-    from crgpr.rff import _rff_sum, se_kernel
+    from crgpr.gp.sampling import _rff_sum, se_kernel
 
     rng = np.random.default_rng(0)
     xs = rng.uniform(-3.0, 3.0, (2, 7, 3))

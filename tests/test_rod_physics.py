@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crgpr.integrator import SimulationDiverged, run_generic
-from crgpr.params import RodParams, SimSettings
-from crgpr.rod import free_mask, internal_forces, masses, strains, variational_derivative
-from crgpr.simulate import dissipation_coefficients, energy, simulate
+from crgpr.physics.integrator import SimulationDiverged, run_generic
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, internal_forces, masses, strains, variational_derivative
+from crgpr.physics.simulate import dissipation_coefficients, energy, simulate
 
 PAPER = SimSettings(dt=1.0e-4, t_end=2.0, record_every=5)
 
@@ -165,7 +165,7 @@ def test_forces_are_minus_energy_gradient(theta, stretch, shear, curv):
 def test_unstrained_straight_rod_has_no_internal_force():
     """Unstrained rod: zero internal force; H_z momenta rows are p / (rho A), p / (rho I)."""
     p = RodParams()
-    from crgpr.rod import straight_rod
+    from crgpr.physics.rod import straight_rod
 
     q = straight_rod(math.radians(60), p)
     hz = variational_derivative(q, np.ones_like(q), p)

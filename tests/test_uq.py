@@ -1,5 +1,5 @@
-"""Trajectory UQ (crgpr.uq): coverage statistics, band table and figure on synthetic ensembles,
-and the sampling stage on a small synthetic GP saved in crgpr.gp's format."""
+"""Trajectory UQ (crgpr.uq.ensemble): coverage statistics, band table and figure on synthetic ensembles,
+and the sampling stage on a small synthetic GP saved in crgpr.gp._gpr's format."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import pytest
 from crgpr.config import load_config
 from crgpr.gp import fit_gp
 from crgpr.io import read_parquet, write_parquet
-from crgpr.params import RodParams, SimSettings
-from crgpr.simulate import simulate, trajectory_frame
-from crgpr.uq import (
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import simulate, trajectory_frame
+from crgpr.uq.ensemble import (
     COVERAGE_COLUMNS,
     UQ_COLUMNS,
     UQSettings,
@@ -99,7 +99,7 @@ def test_coverage_table_and_figure(gt: pd.DataFrame, tmp_path) -> None:
 
 
 def test_sample_models_from_saved_gp(tmp_path) -> None:
-    """The sampling stage reads crgpr.gp's saved format, writes loadable samples, and its
+    """The sampling stage reads crgpr.gp._gpr's saved format, writes loadable samples, and its
     sparse posterior agrees with the exact one (diagnostics)."""
     cfg = load_config(SMOKE)
     settings = UQSettings.from_config(cfg)
@@ -129,7 +129,7 @@ def test_samples_centred_on_rollout_dtc_mean(tmp_path) -> None:
     mean model (the CR-GPR prediction the band is drawn around)."""
     import dataclasses
 
-    from crgpr.gradient_models import dtc_fit, dtc_predict
+    from crgpr.learning.gradient_models import dtc_fit, dtc_predict
 
     cfg = load_config(SMOKE)
     settings = dataclasses.replace(UQSettings.from_config(cfg), n_samples=400, n_features=64)
@@ -155,9 +155,9 @@ def test_samples_centred_on_rollout_dtc_mean(tmp_path) -> None:
 def test_true_targets_match_the_rod_forces() -> None:
     """The analytic targets used by the calibration check reproduce the rod's nodal forces
     through the same assembly as the learned model (features.forces_from_q)."""
-    from crgpr.features import forces_from_q
-    from crgpr.rod import internal_forces, node_weights
-    from crgpr.uq import true_targets
+    from crgpr.learning.features import forces_from_q
+    from crgpr.physics.rod import internal_forces, node_weights
+    from crgpr.uq.ensemble import true_targets
 
     params = RodParams(N=8)
     traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100))

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from crgpr.io import read_metadata, read_parquet
-from crgpr.simulate import TRAJECTORY_COLUMNS
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "tests" / "smoke_config.yaml"
@@ -95,7 +95,7 @@ def test_editing_the_simulator_reruns_ground_truth(tmp_path):
     assert res.returncode == 0, res.stderr[-3000:]
     res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-n", target, snakefile=snakefile)
     assert "Nothing to be done" in res.stdout + res.stderr
-    rod = repo / "src" / "crgpr" / "rod.py"
+    rod = repo / "src" / "crgpr" / "physics" / "rod.py"
     rod.write_text(rod.read_text() + "\n# an edit\n")
     res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-n", target, snakefile=snakefile)
     out = res.stdout + res.stderr

@@ -9,13 +9,13 @@ import sys
 
 # Modules that provide ``add_cli(subparsers)``; a stage adds itself here.
 COMMAND_MODULES: list[str] = [
-    "crgpr.ground_truth",
-    "crgpr.paper",
-    "crgpr.discovery",
-    "crgpr.prefilter",
-    "crgpr.gradient_models",
-    "crgpr.learned",
-    "crgpr.metrics",
+    "crgpr.commands.simulate",
+    "crgpr.report.paper",
+    "crgpr.discovery.selection",
+    "crgpr.learning.prefilter",
+    "crgpr.learning.gradient_models",
+    "crgpr.learning.learned",
+    "crgpr.report.metrics",
 ]
 
 

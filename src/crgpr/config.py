@@ -14,7 +14,7 @@ from typing import Any
 import jsonschema
 import yaml
 
-from .params import PARAM_FIELDS, RodParams, SimSettings
+from crgpr.physics.params import PARAM_FIELDS, RodParams, SimSettings
 
 
 class ConfigError(ValueError):

@@ -19,7 +19,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import __version__
+from crgpr import __version__
 
 META_KEY = b"crgpr"
 

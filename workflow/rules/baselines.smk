@@ -4,7 +4,7 @@
 PINN_VARIANTS = ["pinn_physics", "pinn_data_1", "pinn_data_8"]
 BASELINE_METHODS = ["blackbox_gp", *PINN_VARIANTS]
 ROLLOUT_METHODS.extend(BASELINE_METHODS)  # the metrics rule scores every method in this list
-# ground-truth angles each PINN variant trains on (crgpr.pinn.variant_angles, same order)
+# ground-truth angles each PINN variant trains on (crgpr.baselines.pinn.variant_angles, same order)
 PINN_DATA_ANGLES = {
     "pinn_physics": [],
     "pinn_data_1": [config["angles"]["train_deg"]],
@@ -14,7 +14,7 @@ PINN_DATA_ANGLES = {
 
 rule pinn_train:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "pinn", "smk"),
+        code=code_closure("pinn_train.py"),
         data=lambda wc: expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=PINN_DATA_ANGLES[wc.variant]),
     output:
         weights=f"{RESULTS}/baselines/pinn/{{variant}}.pt",
@@ -37,7 +37,7 @@ rule pinn_train:
 
 rule pinn_rollout:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "pinn", "smk"),
+        code=code_closure("pinn_rollout.py"),
         weights=f"{RESULTS}/baselines/pinn/{{method}}.pt",
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
     output:
@@ -67,7 +67,7 @@ ALL_TARGETS.extend(
 
 rule blackbox_train:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "gp", "prefilter", "blackbox", "smk"),
+        code=code_closure("blackbox_train.py"),
         prefiltered=f"{RESULTS}/prefilter/gp/{config['angles']['train_deg']}.parquet",
     output:
         models=directory(f"{RESULTS}/baselines/blackbox_gp/models"),
@@ -88,7 +88,7 @@ rule blackbox_train:
 
 rule blackbox_rollout:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "gp", "prefilter", "blackbox", "smk"),
+        code=code_closure("blackbox_rollout.py"),
         models=f"{RESULTS}/baselines/blackbox_gp/models",
         summary=f"{RESULTS}/baselines/blackbox_gp/summary.json",
     output:
@@ -116,7 +116,7 @@ ALL_TARGETS.extend(
 
 rule baselines_table:
     input:
-        code=lib("baselines"),
+        code=code_closure("baselines_table.py"),
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
         rollouts=expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=BASELINE_METHODS,
                         angle=config["angles"]["test_deg"]),

@@ -1,14 +1,16 @@
 # Shared paths and helpers of every rule file.
 from pathlib import Path
 
+from crgpr.commands.deps import code_closure as _code_closure
+
 BASE = Path(workflow.basedir)
 RESULTS = "results"
 ENV = "../envs/crgpr.yaml"  # relative to the rule files in workflow/rules/
 
 
-def lib(*modules):
-    """Library source files a rule depends on (so edits to them trigger reruns)."""
-    return [str(BASE / "src" / "crgpr" / f"{m}.py") for m in ("__init__", "io", "params", *modules)]
+def code_closure(script):
+    """Library files a rule's script imports, transitively (editing one reruns the rule)."""
+    return _code_closure(BASE / "workflow" / "scripts" / script, BASE / "src")
 
 
 ANGLES_GT = sorted(

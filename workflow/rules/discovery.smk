@@ -3,12 +3,10 @@
 # discovery rule never reads.
 
 DISCOVERY_CASES = [c["name"] for c in config["discovery"]["cases"]]
-DISCOVERY_CODE = ("config", "rod", "integrator", "simulate", "effects", "measured", "discovery", "smk")
-
 
 rule discovery_data:
     input:
-        code=lib(*DISCOVERY_CODE),
+        code=code_closure("discovery_data.py"),
     output:
         measured=f"{RESULTS}/discovery/{{case}}/measured.parquet",
         truth=f"{RESULTS}/discovery_truth/{{case}}.json",
@@ -31,7 +29,7 @@ rule discovery_data:
 rule discovery_run:
     input:
         measured=f"{RESULTS}/discovery/{{case}}/measured.parquet",
-        code=lib(*DISCOVERY_CODE, "gp"),
+        code=code_closure("discovery_run.py"),
     output:
         json=f"{RESULTS}/discovery/{{case}}/discovery.json",
         report=f"{RESULTS}/discovery/{{case}}/report.md",
@@ -56,7 +54,7 @@ rule discovery_summary:
     input:
         truth=expand(f"{RESULTS}/discovery_truth/{{case}}.json", case=DISCOVERY_CASES),
         results=expand(f"{RESULTS}/discovery/{{case}}/discovery.json", case=DISCOVERY_CASES),
-        code=lib(*DISCOVERY_CODE),
+        code=code_closure("discovery_summary.py"),
     output:
         table=report(
             f"{RESULTS}/tables/discovery.csv",

@@ -3,7 +3,7 @@
 
 rule ground_truth:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "ground_truth", "smk"),
+        code=code_closure("ground_truth.py"),
     output:
         traj=f"{RESULTS}/ground_truth/{{angle}}.parquet",
         energy=f"{RESULTS}/ground_truth/{{angle}}_energy.parquet",

@@ -4,7 +4,7 @@
 
 rule metrics:
     input:
-        code=lib("config", "rod", "simulate", "metrics", "smk"),
+        code=code_closure("metrics.py"),
         gt=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
         rollouts=lambda wc: expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
                                    method=ROLLOUT_METHODS, angle=config["angles"]["test_deg"]),
@@ -41,7 +41,7 @@ _FIG_ANGLE = config["rollouts"]["figure_angle_deg"]
 
 rule figures_crgpr:
     input:
-        code=lib("rod", "io", "figures_crgpr", "smk"),
+        code=code_closure("figures_crgpr.py"),
         gt_train=f"{RESULTS}/ground_truth/{config['angles']['train_deg']}.parquet",
         gt_test=f"{RESULTS}/ground_truth/{{angle}}.parquet",
         gt_test_energy=f"{RESULTS}/ground_truth/{{angle}}_energy.parquet",

@@ -1,15 +1,15 @@
 # Stage 2 (issue 3): the six gradient GPs of Table II (+ the objective variant's three), one
 # job per model, trained on the prefiltered training trajectory; Table II.
 
-from crgpr.learned import model_files as _model_files
-from crgpr.learned import needed_model_jsons as _needed_model_jsons
+from crgpr.learning.learned import model_files as _model_files
+from crgpr.learning.learned import needed_model_jsons as _needed_model_jsons
 
 MODEL_JSONS = _needed_model_jsons(RESULTS, config["rollouts"]["methods"])
 
 
 rule gradient_model:
     input:
-        code=lib("config", "rod", "simulate", "gp", "prefilter", "features", "gradient_models", "smk"),
+        code=code_closure("gradient_model.py"),
         prefiltered=f"{RESULTS}/prefilter/{{prefilter}}/{config['angles']['train_deg']}.parquet",
     output:
         npz=f"{RESULTS}/models/{{prefilter}}/{{model}}.npz",
@@ -33,7 +33,7 @@ rule gradient_model:
 
 rule table2:
     input:
-        code=lib("gradient_models", "smk"),
+        code=code_closure("table2.py"),
         models=MODEL_JSONS,
     output:
         report(

@@ -9,7 +9,7 @@ TIMED_MODELS = list(config["gradient_models"]["models"])
 
 rule timing:
     input:
-        code=lib("timing"),
+        code=code_closure("timing.py"),
         stage1=f"{RESULTS}/prefilter/gp/{TRAIN}.parquet",
         stage2=expand(f"{RESULTS}/models/gp/{{model}}.json", model=TIMED_MODELS),
         stage3=expand(f"{RESULTS}/rollouts/cr_gpr/{{angle}}.parquet", angle=TEST),
@@ -43,7 +43,7 @@ rule timing:
 
 rule paper_tables:
     input:
-        code=lib("paper"),
+        code=code_closure("paper_tables.py"),
         values=str(BASE / "workflow" / "paper_values.yaml"),
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
         hyper=f"{RESULTS}/tables/table2_hyperparameters.csv",

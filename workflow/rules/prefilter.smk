@@ -6,7 +6,7 @@ PREFILTER_METHODS = sorted({m["prefilter"] for m in config["rollouts"]["methods"
 
 rule prefilter:
     input:
-        code=lib("config", "rod", "simulate", "gp", "prefilter", "smk"),
+        code=code_closure("prefilter.py"),
         gt=f"{RESULTS}/ground_truth/{{angle}}.parquet",
     output:
         f"{RESULTS}/prefilter/{{method}}/{{angle}}.parquet",

@@ -7,7 +7,7 @@ ROLLOUT_METHODS.extend(CRGPR_METHODS)
 
 rule rollout:
     input:
-        code=lib("config", "rod", "integrator", "simulate", "features", "gradient_models", "learned", "smk"),
+        code=code_closure("rollout.py"),
         models=lambda wc: _model_files(RESULTS, config["rollouts"]["methods"][wc.method]),
     output:
         traj=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",

@@ -5,12 +5,10 @@
 UQ = config["uq"]
 UQ_PREFILTER = config["rollouts"]["methods"][UQ["method"]]["prefilter"]
 UQ_MODELS = list(config["gradient_models"]["models"])
-UQ_LIB = lib("config", "gp", "rff", "uq", "smk")
-
 
 rule uq_samples:
     input:
-        code=UQ_LIB,
+        code=code_closure("uq_samples.py"),
         models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
         meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
     output:
@@ -32,7 +30,7 @@ rule uq_samples:
 
 rule uq_rollout:
     input:
-        code=UQ_LIB + lib("rod", "integrator", "simulate", "features", "prefilter"),
+        code=code_closure("uq_rollout.py"),
         samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
         models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
     output:
@@ -55,7 +53,7 @@ rule uq_rollout:
 
 rule uq_coverage:
     input:
-        code=UQ_LIB,
+        code=code_closure("uq_coverage.py"),
         uq=expand(f"{RESULTS}/uq/{{angle}}.parquet", angle=UQ["angles_deg"]),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
@@ -81,7 +79,7 @@ rule uq_coverage:
 
 rule uq_calibration:
     input:
-        code=UQ_LIB + lib("rod", "simulate", "features", "prefilter"),
+        code=code_closure("uq_calibration.py"),
         models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
         meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
@@ -107,7 +105,7 @@ rule uq_calibration:
 
 rule uq_figure:
     input:
-        code=UQ_LIB,
+        code=code_closure("uq_figure.py"),
         uq=f"{RESULTS}/uq/{{angle}}.parquet",
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
         mean_model=f"{RESULTS}/rollouts/{UQ['method']}/{{angle}}.parquet",

@@ -1,5 +1,5 @@
-from crgpr import baselines
-from crgpr.smk import run_rule
+from crgpr.commands.smk import run_rule
+from crgpr.report import comparison as baselines
 
 n = len(snakemake.config["angles"]["test_deg"])
 files = list(snakemake.input.rollouts)

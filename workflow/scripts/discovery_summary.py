@@ -1,5 +1,5 @@
-from crgpr import discovery
-from crgpr.smk import run_rule
+from crgpr.commands.smk import run_rule
+from crgpr.discovery import selection as discovery
 
 run_rule(snakemake, discovery.rule_summary, cfg=snakemake.config, cases=list(snakemake.params.cases),
          truths=list(snakemake.input.truth), results=list(snakemake.input.results),

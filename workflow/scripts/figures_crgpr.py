@@ -1,5 +1,5 @@
-from crgpr import figures_crgpr
-from crgpr.smk import run_rule
+from crgpr.commands.smk import run_rule
+from crgpr.report import figures as figures_crgpr
 
 i, o = snakemake.input, snakemake.output
 run_rule(snakemake, figures_crgpr.rule, cfg=snakemake.config, method=snakemake.wildcards.method,

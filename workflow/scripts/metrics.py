@@ -1,5 +1,5 @@
-from crgpr import metrics
-from crgpr.smk import run_rule
+from crgpr.commands.smk import run_rule
+from crgpr.report import metrics
 
 run_rule(snakemake, metrics.rule_accuracy, cfg=snakemake.config, methods=list(snakemake.params.methods),
          angles=list(snakemake.config["angles"]["test_deg"]), results="results",

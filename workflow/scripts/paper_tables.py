@@ -1,5 +1,5 @@
-from crgpr import paper
-from crgpr.smk import run_rule
+from crgpr.commands.smk import run_rule
+from crgpr.report import paper
 
 i, o = snakemake.input, snakemake.output
 run_rule(snakemake, paper.build, values_path=i.values, accuracy=i.accuracy, hyper=i.hyper, timing=i.timing,

@@ -1,5 +1,5 @@
-from crgpr import pinn
-from crgpr.smk import run_rule
+from crgpr.baselines import pinn
+from crgpr.commands.smk import run_rule
 
 run_rule(snakemake, pinn.rule_predict, cfg=snakemake.config, variant=snakemake.wildcards.method,
          weights=snakemake.input.weights, ground_truth=snakemake.input.ground_truth,

@@ -1,5 +1,5 @@
-from crgpr import pinn
-from crgpr.smk import run_rule
+from crgpr.baselines import pinn
+from crgpr.commands.smk import run_rule
 
 angles = pinn.variant_angles(snakemake.config, snakemake.wildcards.variant)
 run_rule(snakemake, pinn.rule_train, cfg=snakemake.config, variant=snakemake.wildcards.variant,

@@ -311,7 +311,7 @@ class GP:
         ``extra_arrays`` (e.g. an approximation of the mean) are stored in the same npz;
         ``load`` ignores them.
         """
-        from .io import write_json, write_npz
+        from crgpr.io import write_json, write_npz
 
         stem = Path(stem)
         npz = stem.with_suffix(".npz")

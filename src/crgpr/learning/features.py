@@ -38,9 +38,9 @@ import math
 
 import numpy as np
 
-from .params import RodParams
-from .prefilter import spatial_derivatives
-from .rod import node_weights
+from crgpr.learning.prefilter import spatial_derivatives
+from crgpr.physics.params import RodParams
+from crgpr.physics.rod import node_weights
 
 PAPER_Q_FEATURES = ("theta_bar", "dx_ds", "dy_ds")
 PAPER_THETA_FEATURES = ("theta_i", "theta_im1", "theta_ip1", "d2theta_ds2", "dx_ds", "dy_ds")

@@ -15,8 +15,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .io import atomic_path, read_parquet  # noqa: E402
-from .rod import STATE_NAMES  # noqa: E402
+from crgpr.io import atomic_path, read_parquet  # noqa: E402
+from crgpr.physics.rod import STATE_NAMES  # noqa: E402
 
 LABELS = {"x": "x [m]", "y": "y [m]", "theta": r"$\theta$ [rad]", "p_x": r"$p_x$ [kg/s]",
           "p_y": r"$p_y$ [kg/s]", "p_theta": r"$p_\theta$ [kg m/s]"}

@@ -8,7 +8,7 @@ residual of eq. (ph-compact),
 
 with the continuous stress resultants n_1 = EA (nu1 - nu1^0), n_2 = GA (nu2 - nu2^0),
 m = EI (kappa - kappa^0) and the variationally correct sign of the couple
-(dH/dtheta = -d_s m - (nu1 n_2 - nu2 n_1); see ``crgpr.rod``: the paper's sign is a typo),
+(dH/dtheta = -d_s m - (nu1 n_2 - nu2 n_1); see ``crgpr.physics.rod``: the paper's sign is a typo),
 plus the free-tip conditions n_1 = n_2 = m = 0 at s = L0. The data-assisted variants add a
 mean-squared error on ground-truth samples (N_init = 1: 85 deg; N_init = 8: config
 ``angles.pinn_train_deg``).
@@ -60,10 +60,10 @@ import pandas as pd
 import torch
 from torch import nn
 
-from .config import ConfigError, rod_params
-from .io import read_parquet, write_parquet
-from .params import RodParams
-from .simulate import TRAJECTORY_COLUMNS
+from crgpr.config import ConfigError, rod_params
+from crgpr.io import read_parquet, write_parquet
+from crgpr.physics.params import RodParams
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -466,7 +466,7 @@ def rule_train(cfg: dict[str, Any], variant: str, data: dict[int, str], weights_
     model, hist, info = train_pinn(cfg, variant, data, threads)
     weights_out = Path(weights_out)
     weights_out.parent.mkdir(parents=True, exist_ok=True)
-    from .io import atomic_path
+    from crgpr.io import atomic_path
 
     with atomic_path(weights_out, ".pt") as tmp:
         torch.save(model.state_dict(), tmp)

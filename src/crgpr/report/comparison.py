@@ -1,7 +1,7 @@
 """Baseline comparison table and figure (paper Sec. V, "Baseline Comparisons", Fig. baseline_bar).
 
 Reads the per-angle metrics of every method from ``results/metrics/accuracy.parquet`` (computed
-by ``crgpr.metrics`` with the paper's definitions, one row per (method, theta0)), averages them
+by ``crgpr.report.metrics`` with the paper's definitions, one row per (method, theta0)), averages them
 over the test angles and writes ``results/tables/baselines.csv`` with the paper's numbers beside
 ours, ``results/tables/baselines_notes.md`` (ordering, divergence, PINN motion) and the grouped
 log-scale bar chart ``results/figures/baselines.png``.
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .io import atomic_path, read_metadata, read_parquet, write_csv, write_text
+from crgpr.io import atomic_path, read_metadata, read_parquet, write_csv, write_text
 
 log = logging.getLogger(__name__)
 

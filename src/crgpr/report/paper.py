@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from .io import read_parquet, write_csv, write_text
+from crgpr.io import read_parquet, write_csv, write_text
 
 MATCH, OUTSIDE, MISSING = "match", "outside band", "missing"
 HOLDS, FAILS, UNKNOWN = "holds", "does not hold", "not evaluated"

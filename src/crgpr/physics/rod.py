@@ -47,7 +47,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .params import RodParams
+from crgpr.physics.params import RodParams
 
 STATE_NAMES: tuple[str, ...] = ("x", "y", "theta", "p_x", "p_y", "p_theta")
 

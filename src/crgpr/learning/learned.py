@@ -28,21 +28,22 @@ import argparse
 import logging
 import math
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
 from numba import njit
 
-from . import features as ft
-from .config import ConfigError, load_config, rod_params, sim_settings
-from .gradient_models import MOMENTUM_MODELS, load_model_arrays
-from .integrator import SimulationDiverged, run_hamiltonian
-from .io import write_json, write_parquet
-from .params import RodParams, SimSettings
-from .rod import free_mask, node_weights, straight_rod
-from .simulate import Trajectory, trajectory_frame
+from crgpr.config import ConfigError, load_config, rod_params, sim_settings
+from crgpr.io import write_json, write_parquet
+from crgpr.learning import features as ft
+from crgpr.learning.gradient_models import MOMENTUM_MODELS, load_model_arrays
+from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, node_weights, straight_rod
+from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 log = logging.getLogger(__name__)
 
@@ -127,64 +128,101 @@ class Approx:
         return np.where(inside, self.tslope[np.clip(j, 0, self.tslope.size - 1)], 0.0)
 
 
-class LearnedRod:
-    """H_z_hat of a method; ``force(q)`` = -H_q_hat + G u and ``velocity(p)`` = H_p_hat per length."""
+PAPER_COMPONENTS = ("q_x", "q_y", "dH_dtheta")
+OBJECTIVE_COMPONENTS = ("obj_n1", "obj_n2", "obj_m")
 
-    def __init__(self, model_dir: str | Path, features: str, params: RodParams,
-                 momentum_dir: str | Path | None = None):
-        model_dir = Path(model_dir)
-        momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
+
+class Component(Protocol):
+    """One learned scalar function of a feature matrix (a GP mean, a posterior sample, an oracle).
+
+    ``__call__(X)``: values at feature rows X (..., d) -> (...); momentum components
+    (1-D input) also provide ``slope(x)``, dH_p/dp, for the exact damping flow.
+    """
+
+    def __call__(self, X: np.ndarray) -> np.ndarray: ...
+
+
+class LearnedRod:
+    """The learned H_z_hat of eq. (15) (paper Sec. III-B step 4), assembled from components.
+
+    The protocol every learned rod implements, and the only one the integrator sees:
+    ``force(q)`` = -H_q_hat + G u and ``velocity(p)`` = H_p_hat per unit length, and
+    ``velocity_slope(p)`` = dH_p_hat/dp. ``components`` maps names to evaluators:
+    ``q_x, q_y, dH_dtheta`` (features 'paper') or ``obj_n1, obj_n2, obj_m`` (features
+    'objective'), plus ``dH_dp_x, dH_dp_y, dH_dp_theta``. Any evaluator works: compiled GP
+    means (``from_dir``), posterior samples, analytic oracles. States may carry leading batch
+    axes (..., N+1, 3) when the components do.
+    """
+
+    def __init__(self, components: Mapping[str, Component], features: str, params: RodParams,
+                 theta_center: float | None = None):
+        names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
+        if names is None:
+            raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
+        missing = [m for m in (*names, *MOMENTUM_MODELS) if m not in components]
+        if missing:
+            raise ValueError(f"learned rod ({features} features) lacks component(s) {missing}")
         self.features = features
         self.params = params
+        self.components = dict(components)
+        self.center = theta_center
         self.wds = node_weights(params.N) * params.ds
-        self.hp = [Approx(momentum_dir / m) for m in MOMENTUM_MODELS]
-        if features == "paper":
-            self.q_x, self.q_y = Approx(model_dir / "q_x"), Approx(model_dir / "q_y")
-            self.h_th = Approx(model_dir / "dH_dtheta")
-            self.center = self.q_x.meta.get("theta_center")
-            c2 = self.h_th.meta.get("theta_center")
-            if (self.center is None) != (c2 is None) or (c2 is not None and abs(c2 - self.center) > 1e-12):
-                raise ValueError(f"{model_dir}: q_x and dH_dtheta were trained with different theta windows")
-        elif features == "objective":
-            self.n1, self.n2 = Approx(model_dir / "obj_n1"), Approx(model_dir / "obj_n2")
-            self.m = Approx(model_dir / "obj_m")
-        else:
-            raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
+        self.hp = [self.components[m] for m in MOMENTUM_MODELS]
         self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
 
+    @classmethod
+    def from_dir(cls, model_dir: str | Path, features: str, params: RodParams,
+                 momentum_dir: str | Path | None = None) -> LearnedRod:
+        """The rollout approximations of the models saved in ``model_dir`` (stage 2 output)."""
+        model_dir = Path(model_dir)
+        momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
+        names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
+        if names is None:
+            raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
+        comps: dict[str, Component] = {m: Approx(momentum_dir / m) for m in MOMENTUM_MODELS}
+        comps.update({m: Approx(model_dir / m) for m in names})
+        center = None
+        if features == "paper":
+            center = comps["q_x"].meta.get("theta_center")
+            c2 = comps["dH_dtheta"].meta.get("theta_center")
+            if (center is None) != (c2 is None) or (c2 is not None and abs(c2 - center) > 1e-12):
+                raise ValueError(f"{model_dir}: q_x and dH_dtheta were trained with different theta windows")
+        return cls(comps, features, params, center)
+
     def internal(self, q: np.ndarray) -> np.ndarray:
-        """-H_q_hat per unit length at every node (N+1, 3) for one configuration q (N+1, 3)."""
+        """-H_q_hat per unit length at every node (..., N+1, 3) for configurations q (..., N+1, 3)."""
         P = self.params
-        x, y, th = q[:, 0], q[:, 1], q[:, 2]
-        out = np.zeros((P.N + 1, 3))
+        c = self.components
+        x, y, th = q[..., 0], q[..., 1], q[..., 2]
+        out = np.zeros(q.shape)
         if self.features == "paper":
             Xq = ft.paper_q_features(x, y, th, P.ds, self.center)
-            out[:, 0] = ft.forces_from_q(self.q_x(Xq), P)
-            out[:, 1] = ft.forces_from_q(self.q_y(Xq), P)
-            out[1:, 2] = -self.h_th(ft.paper_theta_features(x, y, th, P.ds, self.center))
+            out[..., 0] = ft.forces_from_q(c["q_x"](Xq), P)
+            out[..., 1] = ft.forces_from_q(c["q_y"](Xq), P)
+            out[..., 1:, 2] = -c["dH_dtheta"](ft.paper_theta_features(x, y, th, P.ds, self.center))
         else:
             sg = ft.segments(x, y, th, P.ds)
             Xn = np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
-            n1, n2 = self.n1(Xn), self.n2(Xn)
-            m = self.m(ft.objective_m_features(x, y, th, P.ds))
-            c, s = sg["cos"], sg["sin"]
-            out[:, 0] = ft.forces_from_q(n1 * c - n2 * s, P)
-            out[:, 1] = ft.forces_from_q(n1 * s + n2 * c, P)
-            out[:, 2] = ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)
+            n1, n2 = c["obj_n1"](Xn), c["obj_n2"](Xn)
+            m = c["obj_m"](ft.objective_m_features(x, y, th, P.ds))
+            cs, sn = sg["cos"], sg["sin"]
+            out[..., 0] = ft.forces_from_q(n1 * cs - n2 * sn, P)
+            out[..., 1] = ft.forces_from_q(n1 * sn + n2 * cs, P)
+            out[..., 2] = ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)
         return out
 
     def force(self, q: np.ndarray) -> np.ndarray:
         return self.internal(q) + self.gu
 
     def velocity(self, p: np.ndarray) -> np.ndarray:
-        return np.stack([self.hp[k](p[:, k]) for k in range(3)], axis=1)
+        return np.stack([self.hp[k](p[..., k]) for k in range(3)], axis=-1)
 
     def velocity_slope(self, p: np.ndarray) -> np.ndarray:
-        return np.stack([self.hp[k].slope(p[:, k]) for k in range(3)], axis=1)
+        return np.stack([self.hp[k].slope(p[..., k]) for k in range(3)], axis=-1)
 
     def hz(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """H_z_hat (N+1, 6) per unit length."""
-        return np.concatenate([-self.internal(q), self.velocity(p)], axis=1)
+        """H_z_hat (..., N+1, 6) per unit length."""
+        return np.concatenate([-self.internal(q), self.velocity(p)], axis=-1)
 
 
 def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout") -> Trajectory:
@@ -250,7 +288,7 @@ def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str |
     """Roll one method out at one angle; on divergence write ``{out}_diverged.json`` and raise."""
     spec = method_spec(cfg, method)
     params, settings = rod_params(cfg), sim_settings(cfg)
-    model = LearnedRod(model_dir, spec["features"], params)
+    model = LearnedRod.from_dir(model_dir, spec["features"], params)
     t0 = time.perf_counter()
     record = Path(str(out).removesuffix(".parquet") + "_diverged.json")
     try:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .rod import _internal_forces
+from crgpr.physics.rod import _internal_forces
 
 # Guard rails: a state beyond these is a diverged run, not physics.
 MAX_SPEED = 1.0e3  # [m/s] or [rad/s]

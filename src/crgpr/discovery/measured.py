@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .io import read_parquet
+from crgpr.io import read_parquet
 
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "node", "x", "y")
 
@@ -190,7 +190,7 @@ def smooth_kinematics(meas: Measured, noise_std_min: float = 0.0, seed: int = 0,
     LML of ``spatial_fit_times`` evenly spaced frames; its posterior mean is a fixed linear
     smoother S, applied to phi and to its time derivatives alike (so they stay consistent).
     """
-    from .gp import fit_gp  # issue 3's GP (Matern-5/2, explicit basis, analytic derivatives)
+    from crgpr.gp import fit_gp  # issue 3's GP (Matern-5/2, explicit basis, analytic derivatives)
 
     t = meas.t
     n_t = t.size
@@ -226,7 +226,7 @@ def smooth_kinematics(meas: Measured, noise_std_min: float = 0.0, seed: int = 0,
 def _smooth_along_s(phi: np.ndarray, dphi: np.ndarray, ddphi: np.ndarray, n_fit: int, seed: int
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Apply one GP smoother along s (hyperparameters from the joint LML of some frames)."""
-    from .gp import fit_gp
+    from crgpr.gp import fit_gp
 
     n_t, n_seg = phi.shape
     s = (np.arange(n_seg) + 0.5) / n_seg  # segment midpoints, in units of L0

@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .io import read_metadata, read_parquet, write_csv, write_parquet
-from .rod import STATE_NAMES
-from .simulate import TRAJECTORY_COLUMNS
+from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+from crgpr.physics.rod import STATE_NAMES
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -125,7 +125,7 @@ def table4(acc: pd.DataFrame, methods: list[str]) -> pd.DataFrame:
 def rule_accuracy(cfg: dict[str, Any], methods: list[str], angles: list[int], results: str, out: str,
                   table1_out: str, table4_out: str) -> None:
     """Snakemake entry point of rule ``metrics``: accuracy.parquet and Tables I and IV."""
-    from .config import rod_params
+    from crgpr.config import rod_params
 
     L0 = rod_params(cfg).L0
     pairs = [(m, a, f"{results}/ground_truth/{a}.parquet", f"{results}/rollouts/{m}/{a}.parquet")

@@ -63,7 +63,7 @@ import numpy as np
 import scipy.linalg as sla
 from numba import njit
 
-from .gp import GP, basis_matrix_std, kernel_matrix
+from crgpr.gp import GP, basis_matrix_std, kernel_matrix
 
 log = logging.getLogger(__name__)
 

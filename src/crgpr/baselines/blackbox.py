@@ -8,7 +8,7 @@ resultants and no spatial derivative of a learned flux: each output is a free fu
     f = [theta_i, theta_{i-1}, theta_{i+1}, d2theta/ds2, dx/ds, dy/ds, p_x, p_y, p_theta]_i,
 
 the union of the local features of CR-GPR's six gradient GPs (paper GPR 1-6), computed by
-CR-GPR's own ``crgpr.features.paper_theta_features`` (nodal stencils, free-tip ghost
+CR-GPR's own ``crgpr.learning.features.paper_theta_features`` (nodal stencils, free-tip ghost
 theta_{N+1} = theta_{N-1}, angles shifted into the 2 pi window centred on the training range
 when ``gradient_models.theta_wrap`` is on) plus the nodal momenta, both for training (on the
 prefiltered 85 deg data, the same data set E as CR-GPR) and during the rollout. Kernel family and
@@ -46,15 +46,15 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from . import features as ft
-from .config import ConfigError, rod_params, sim_settings
-from .gp import GP, basis_matrix_std, fit_gp
-from .integrator import MAX_SPEED, SimulationDiverged
-from .io import read_parquet, write_json, write_parquet
-from .params import RodParams, SimSettings
-from .prefilter import D1_COLUMNS, PREFILTER_COLUMNS
-from .rod import STATE_NAMES, straight_rod
-from .simulate import TRAJECTORY_COLUMNS
+from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.gp import GP, basis_matrix_std, fit_gp
+from crgpr.io import read_parquet, write_json, write_parquet
+from crgpr.learning import features as ft
+from crgpr.learning.prefilter import D1_COLUMNS, PREFILTER_COLUMNS
+from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import STATE_NAMES, straight_rod
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 

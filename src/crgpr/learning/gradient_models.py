@@ -39,12 +39,12 @@ import numpy as np
 import pandas as pd
 import scipy.linalg as sla
 
-from . import features as ft
-from .config import ConfigError, load_config, rod_params
-from .gp import GP, basis_matrix_std, fit_gp, kernel_matrix
-from .io import load_npz, write_csv
-from .params import RodParams
-from .prefilter import prefiltered_arrays, read_prefiltered
+from crgpr.config import ConfigError, load_config, rod_params
+from crgpr.gp import GP, basis_matrix_std, fit_gp, kernel_matrix
+from crgpr.io import load_npz, write_csv
+from crgpr.learning import features as ft
+from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
+from crgpr.physics.params import RodParams
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .io import write_parquet
+from crgpr.io import write_parquet
 
 PAPER_MINUTES = {"stage1": 3.0, "stage2": 8.0, "stage3": 2.4, "stage4": 36.0}
 DESCRIPTION = {

@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import RodParams
-from .rod import node_weights, segment_EI
+from crgpr.physics.params import RodParams
+from crgpr.physics.rod import node_weights, segment_EI
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Missing-physics workflow (``crgpr discover``): locate, name, add, and verify a missing effect.
 
-Goes beyond the paper (issue 6). Given camera positions of a rod (``crgpr.measured``) and the
+Goes beyond the paper (issue 6). Given camera positions of a rod (``crgpr.discovery.measured``) and the
 nominal model of ``config.yaml``:
 
 1. Locate. The nominal model is simulated from the measured initial state (GP-smoothed,
@@ -9,7 +9,7 @@ nominal model of ``config.yaml``:
    error, and the sign of the net work of the missing terms from the port-Hamiltonian energy
    balance dH/dt = -H_z^T R H_z + P_missing (net negative work: a missing dissipation).
 2. Name. The cut-moment residual of the measured data against the nominal model
-   (``crgpr.effects``) is regressed on every candidate's signature. Candidates enter by
+   (``crgpr.discovery.effects``) is regressed on every candidate's signature. Candidates enter by
    forward stepwise selection with the Bayesian information criterion of a heteroscedastic
    Gaussian model (one variance per segment and one for the clamp constraint), the sample size
    deflated by the integrated autocorrelation time of the residuals in time and along s; a
@@ -38,14 +38,14 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares, lsq_linear
 
-from .config import load_config, rod_params, sim_settings
-from .effects import EFFECT_NAMES, EFFECTS, Residual, effect_params, residual
-from .integrator import SimulationDiverged, run_generic
-from .io import atomic_path, read_parquet, write_csv, write_json, write_parquet, write_text
-from .measured import Kinematics, Measured, camera_frame, load_measured, smooth_kinematics
-from .params import RodParams, SimSettings
-from .rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
-from .simulate import dissipation_coefficients, simulate
+from crgpr.config import load_config, rod_params, sim_settings
+from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS, Residual, effect_params, residual
+from crgpr.discovery.measured import Kinematics, Measured, camera_frame, load_measured, smooth_kinematics
+from crgpr.io import atomic_path, read_parquet, write_csv, write_json, write_parquet, write_text
+from crgpr.physics.integrator import SimulationDiverged, run_generic
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
+from crgpr.physics.simulate import dissipation_coefficients, simulate
 
 log = logging.getLogger(__name__)
 

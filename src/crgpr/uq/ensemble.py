@@ -5,7 +5,7 @@ Stages (rules in workflow/rules/uq.smk):
 
 ``uq_samples``   For every SE / ARD-SE gradient GP of the UQ method (paper Table II: q_x, q_y,
                  dH/dtheta, dH/dp_x, dH/dp_y, dH/dp_theta) draw S joint posterior function
-                 samples (``crgpr.rff``: sparse pathwise conditioning on M inducing inputs, or
+                 samples (``crgpr.gp.sampling``: sparse pathwise conditioning on M inducing inputs, or
                  exact pathwise conditioning compressed onto them), basis coefficients
                  included, and write them as plain arrays to
                  ``results/uq/samples/{model}.npz``; the sampling-approximation errors are
@@ -52,9 +52,7 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from . import features as ft
-from .io import read_parquet, write_csv, write_json, write_npz, write_parquet
-from .rff import (
+from crgpr.gp.sampling import (
     CompressedSamples,
     GPSpec,
     exact_posterior,
@@ -62,9 +60,11 @@ from .rff import (
     pivoted_cholesky_inducing,
     sparse_posterior,
 )
-from .rff import compress as compress_samples
-from .rod import free_mask, node_weights, straight_rod
-from .simulate import TRAJECTORY_COLUMNS
+from crgpr.gp.sampling import compress as compress_samples
+from crgpr.io import read_parquet, write_csv, write_json, write_npz, write_parquet
+from crgpr.learning import features as ft
+from crgpr.physics.rod import free_mask, node_weights, straight_rod
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -276,7 +276,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
     info["sampling_s"] = time.perf_counter() - t0
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
         # our DTC posterior mean against the mean model the CR-GPR rollout integrates
-        from .rff import se_kernel
+        from crgpr.gp.sampling import se_kernel
 
         xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
                                                              replace=False)]
@@ -365,7 +365,7 @@ def sample_models(model_stems: dict[str, str], settings: UQSettings, cfg: dict[s
 
 
 def load_samples(paths: dict[str, str | Path]) -> dict[str, CompressedSamples | TabulatedSamples]:
-    from .io import load_npz
+    from crgpr.io import load_npz
 
     return {name: samples_from_arrays(load_npz(p)) for name, p in paths.items()}
 
@@ -439,7 +439,7 @@ def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_resta
     dropped, and the remaining batch is integrated again from t = 0 (never silently kept).
     Returns t (n_t,), q and p (S', n_t, N+1, 3) of the surviving samples, their indices, and
     the divergence records."""
-    from .integrator import MAX_SPEED, SimulationDiverged, run_hamiltonian
+    from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged, run_hamiltonian
 
     P = rod.params
     q0 = straight_rod(np.radians(theta0_deg), P)
@@ -578,7 +578,7 @@ def coverage_row(uq: pd.DataFrame, gt: pd.DataFrame, lo: float, hi: float, n_div
 def coverage_table(uq_paths: dict[int, str], gt_paths: dict[int, str], settings: UQSettings,
                    out_parquet: str | Path, out_csv: str | Path) -> pd.DataFrame:
     """Stage ``uq_coverage``: one row per angle (``COVERAGE_COLUMNS``) plus a mean row in the CSV."""
-    from .io import read_metadata
+    from crgpr.io import read_metadata
 
     rows = []
     for angle in sorted(uq_paths):
@@ -618,7 +618,7 @@ def band_figure(uq: pd.DataFrame, gt: pd.DataFrame, settings: UQSettings, out: s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .io import atomic_path
+    from crgpr.io import atomic_path
 
     lo, hi = settings.band_pct
     arr, qlo, qmed, qhi, _ = band_arrays(uq, ("x", "y"), lo, hi)
@@ -711,7 +711,7 @@ def figure_rule(cfg: dict[str, Any], uq_path: str, gt_path: str, out: str,
 
 def rollout_rule(cfg: dict[str, Any], angle: int, samples: list[str], models: list[str], out: str) -> None:
     """Rule ``uq_rollout``: S sampled models through the rollout at one angle."""
-    from .config import rod_params, sim_settings
+    from crgpr.config import rod_params, sim_settings
 
     settings = UQSettings.from_config(cfg)
     params, sim = rod_params(cfg), sim_settings(cfg)
@@ -744,7 +744,7 @@ def true_targets(q: np.ndarray, p: np.ndarray, params: Any) -> dict[str, np.ndar
     """The analytic rod's values of the six gradient-GP targets at states q, p (n_t, N+1, 3):
     q_x, q_y (segments: the rod's own stress resultants, features.q_from_hz of its H_x, H_y),
     dH_dtheta at nodes 1..N (-F_theta / (w ds)), dH_dp_* = p / (rho A), p_theta / (rho I)."""
-    from .rod import internal_forces, strains
+    from crgpr.physics.rod import internal_forces, strains
 
     st = strains(q, params)
     wds = node_weights(params.N) * params.ds
@@ -761,8 +761,8 @@ def function_calibration(cfg: dict[str, Any], model_stems: dict[str, str], gt_pa
     sampler's predictive sd: DTC for the multi-input GPs, exact for the 1D ones), and the
     fraction with |z| < 1.96 (0.95 if calibrated). Poor function-level coverage means the
     trajectory band cannot cover the truth, whatever S and D."""
-    from .config import rod_params
-    from .simulate import trajectory_from_frame
+    from crgpr.config import rod_params
+    from crgpr.physics.simulate import trajectory_from_frame
 
     params = rod_params(cfg)
     specs = {m: load_gp_spec(s, m) for m, s in model_stems.items()}
@@ -791,7 +791,7 @@ def function_calibration(cfg: dict[str, Any], model_stems: dict[str, str], gt_pa
             mean, var = post.mean_var(X)
             ra = getattr(spec, "rollout_arrays", {})
             if kind == "dtc" and "dtc_w" in ra:  # centre = the rollout's mean model
-                from .rff import se_kernel
+                from crgpr.gp.sampling import se_kernel
 
                 xs = spec.standardise(X)
                 mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.lengthscales)

@@ -12,10 +12,10 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from .config import ConfigError, load_config, parse_set, rod_params, sim_settings
-from .io import write_parquet
-from .params import RodParams, SimSettings
-from .simulate import energy_frame, simulate, trajectory_frame
+from crgpr.config import ConfigError, load_config, parse_set, rod_params, sim_settings
+from crgpr.io import write_parquet
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import energy_frame, simulate, trajectory_frame
 
 log = logging.getLogger(__name__)
 

@@ -40,11 +40,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .config import ConfigError, load_config, rod_params
-from .gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
-from .io import read_parquet, write_parquet
-from .rod import STATE_NAMES
-from .simulate import TRAJECTORY_COLUMNS, Trajectory, trajectory_from_frame
+from crgpr.config import ConfigError, load_config, rod_params
+from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
+from crgpr.io import read_parquet, write_parquet
+from crgpr.physics.rod import STATE_NAMES
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory, trajectory_from_frame
 
 log = logging.getLogger(__name__)
 

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .integrator import Integration, run_rod
-from .params import RodParams, SimSettings
-from .rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
+from crgpr.physics.integrator import Integration, run_rod
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
 
 TRAJECTORY_COLUMNS: tuple[str, ...] = (
     "theta0_deg", "t", "node", "s", "x", "y", "theta", "p_x", "p_y", "p_theta",

@@ -1,0 +1,1 @@
+"""Baselines of the paper's Sec. V ("Baseline Comparisons"): ``pinn`` and ``blackbox`` (GP)."""

@@ -1,0 +1,1 @@
+"""Entry points: Snakemake rule functions and ``crgpr`` CLI commands (thin wrappers)."""
