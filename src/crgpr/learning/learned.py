@@ -143,7 +143,7 @@ class Component(Protocol):
 
 
 class LearnedRod:
-    """The learned H_z_hat of eq. (15) (paper Sec. III-B step 4), assembled from components.
+    """The learned H_z_hat of eq. (17) (paper Sec. III-B, step 4), assembled from components.
 
     The protocol every learned rod implements, and the only one the integrator sees:
     ``force(q)`` = -H_q_hat + G u and ``velocity(p)`` = H_p_hat per unit length, and

@@ -1,4 +1,4 @@
-"""Physics of the planar Cosserat rod (paper Sec. III-A, eqs. (1)-(9); Sec. IV, Table III).
+"""Physics of the planar Cosserat rod (paper Sec. III-A, eqs. (3)-(10); Sec. IV, Table I).
 
 Public API:
 * ``RodParams``, ``SimSettings``: the rod's parameters (Table III) and the time grid;
