@@ -154,7 +154,7 @@ def test_fuzz_loader_raises_only_its_own_error(data):
     floats = hs.one_of(hs.floats(allow_nan=True, allow_infinity=True), hs.integers(-5, 30))
     cols = data.draw(hs.lists(hs.sampled_from(["t", "node", "s", "x", "y", "z"]), unique=True, max_size=6))
     df = pd.DataFrame({c: data.draw(hs.lists(floats, min_size=n, max_size=n)) for c in cols})
-    if data.draw(hs.booleans()) and n:
+    if data.draw(hs.booleans()) and n and cols:
         df = df.astype(object)
         df.iloc[0, 0] = data.draw(hs.text(max_size=3))
     try:

@@ -22,8 +22,9 @@ the model's grid (``crgpr.discovery.kinematics``) and the nominal model of confi
    Gaussian model (one variance per segment and one for the clamp constraint), the sample
    size deflated by the integrated autocorrelation time of the residuals in time and along s;
    a candidate must lower BIC by ``bic_min_improvement`` (10: "very strong evidence", Kass and
-   Raftery 1995) and be confirmed by the trajectory fit (its BIC, and at least
-   ``min_effect_fraction`` of the gap closed).
+   Raftery 1995) or rank high by its linearised trajectory evidence, and be confirmed by the
+   trajectory fit (its BIC, at least ``min_effect_fraction`` of the gap closed, and the same
+   sign of the coefficient in the residual regression and in the trajectory fit).
 4. Verdict. ``none`` if the gap's excess over the floor is below ``min_gap_rad``;
    ``effect_found`` if the named effects close at least ``min_explained`` of the gap AND leave
    no excess over the floor above ``max(min_gap_rad, max_remaining * excess)``; otherwise
@@ -640,10 +641,17 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
                     cand = retry if retry.rss < cand.rss else cand
                 dbic = trajectory_delta_bic(cur, cand)
                 closes = cur.rmse - cand.rmse >= st.min_effect_fraction * gap_before
-                ok = dbic >= st.bic_min_improvement and closes
+                # the two independent estimates must agree in sign: a candidate whose
+                # cut-moment residual coefficient is opposite (or at its bound) while the
+                # trajectory fit wants it is a global effect absorbing a disturbance it
+                # does not describe
+                agrees = float(f.coef[0]) * float(cand.coef[-1]) > 0.0
+                ok = dbic >= st.bic_min_improvement and closes and agrees
                 step["confirmation"].append({"effect": k, "residual_bic_gain": gain, "rmse": cand.rmse,
                                              "trajectory_delta_bic": dbic, "accepted": False,
-                                             "nfev": cand.nfev})
+                                             "residual_coefficient": float(f.coef[0]),
+                                             "trajectory_coefficient": float(cand.coef[-1]),
+                                             "signs_agree": agrees, "nfev": cand.nfev})
                 log.info("trajectory fit %s: RMSE %.4f, delta BIC %.1f, acceptable %s", names, cand.rmse,
                          dbic, ok)
                 if ok and (best is None or cand.rss < best[0].rss):
