@@ -13,12 +13,6 @@ DISCOVERY_RUN_KEYS = [
 ]
 
 
-def discovery_case_params(wildcards):
-    d = config["discovery"]
-    return {**{k: d[k] for k in DISCOVERY_RECORD_KEYS},
-            "cases": [c for c in d["cases"] if c["name"] == wildcards.case]}
-
-
 rule discovery_data:
     input:
         code=code_closure("discovery_data.py"),
@@ -27,7 +21,10 @@ rule discovery_data:
         truth=f"{RESULTS}/discovery_truth/{{case}}.json",
     params:
         rod=config["rod"],
-        discovery=discovery_case_params,
+        discovery=lambda wildcards: {
+            **{k: config["discovery"][k] for k in DISCOVERY_RECORD_KEYS},
+            "cases": [c for c in config["discovery"]["cases"] if c["name"] == wildcards.case],
+        },
         seed=config["seed"],
     wildcard_constraints:
         case=r"[A-Za-z0-9_]+",
