@@ -148,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{r.name:<20} {len(r.seconds):>4} "
             f"{fmt(statistics.median(r.seconds) if r.seconds else None, '10.1f')} "
-            f"{fmt(max(r.seconds) if r.seconds else None, '10.1f')} {fmt(max(rss) if rss else None, '10.0f')} | "
+            f"{fmt(max(r.seconds) if r.seconds else None, '10.1f')} "
+            f"{fmt(max(rss) if rss else None, '10.0f')} | "
             f"{r.threads:>7} {r.mem_mb:>7.0f} {r.runtime:>7.0f} | {fmt(mem, '>8')} {fmt(run, '>8')}{flag}"
         )
     return 0

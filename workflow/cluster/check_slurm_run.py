@@ -125,7 +125,8 @@ def check_jobs(log_text: str, jobcomp_text: str, slurm_logs: Path, host: str | N
         log = Path(sub["log"])
         if not (log.is_file() and log.stat().st_size > 0):
             failures.append(f"{what}: Slurm log {log} missing or empty")
-        elif log.parent.parts[-1 - bool(job["wildcards"])] != f"rule_{job['rule']}" or log.name != f"{sid}.log":
+        elif (log.parent.parts[-1 - bool(job["wildcards"])] != f"rule_{job['rule']}"
+              or log.name != f"{sid}.log"):
             failures.append(f"{what}: Slurm log {log} not at rule_{job['rule']}/.../{sid}.log")
         elif slurm_logs.resolve() not in log.resolve().parents:
             failures.append(f"{what}: Slurm log {log} outside {slurm_logs}")
@@ -139,7 +140,8 @@ def check_jobs(log_text: str, jobcomp_text: str, slurm_logs: Path, host: str | N
             failures.append(f"{what}: Slurm job {sid} ran on {rec.get('NodeList')}, not {host}")
         want_mem = float(job["resources"].get("mem_mb", "nan"))
         want_min = float(job["resources"].get("runtime", "nan"))
-        got = (int(rec.get("ProcCnt", -1)), tres_mem_mb(rec.get("Tres", "")), float(rec.get("TimeLimit", "nan")))
+        got = (int(rec.get("ProcCnt", -1)), tres_mem_mb(rec.get("Tres", "")),
+               float(rec.get("TimeLimit", "nan")))
         if got != (job["threads"], want_mem, want_min):
             failures.append(
                 f"{what}: Slurm job {sid} got cpus/mem_mb/minutes {got}, "
@@ -208,7 +210,7 @@ def diff_keys(a: Any, b: Any, path: str = "") -> list[str]:
         return out
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         return [p for i, (x, y) in enumerate(zip(a, b, strict=True)) for p in diff_keys(x, y, f"{path}[{i}]")]
-    return [] if a == b or (a != a and b != b) else [path or "."]  # noqa: PLR0124 (NaN)
+    return [] if a == b or (a != a and b != b) else [path or "."]  # a != a: NaN
 
 
 def compare_json(a: Path, b: Path) -> str | None:
@@ -223,7 +225,8 @@ def compare_npz(a: Path, b: Path) -> str | None:
             return f"arrays {sorted(za.files)} != {sorted(zb.files)}"
         for k in za.files:
             x, y = za[k], zb[k]
-            if x.dtype != y.dtype or x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"):
+            same = x.dtype == y.dtype and x.shape == y.shape
+            if not (same and np.array_equal(x, y, equal_nan=x.dtype.kind in "fc")):
                 return f"array {k} differs"
     return None
 
@@ -256,16 +259,17 @@ def _flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
 
 
 def compare_csv(a: Path, b: Path) -> str | None:
-    da, db = pd.read_csv(a), pd.read_csv(b)
-    for d in (da, db):
-        d.drop(columns=[c for c in d.columns if c in TIMING_COLUMNS], inplace=True)
+    def without_timing(d: pd.DataFrame) -> pd.DataFrame:
+        d = d.drop(columns=[c for c in d.columns if c in TIMING_COLUMNS])
         if "source" in d.columns:
             rows = d["source"] == TIMING_ROW_SOURCE
             for c in TIMING_ROW_COLUMNS:
                 if c in d.columns:
                     d[c] = d[c].astype(object)
                     d.loc[rows, c] = "<timing>"
-    return frames_equal(da, db)
+        return d
+
+    return frames_equal(without_timing(pd.read_csv(a)), without_timing(pd.read_csv(b)))
 
 
 def compare_md(a: Path, b: Path) -> str | None:
@@ -322,7 +326,9 @@ def main(argv: list[str] | None = None) -> int:
         if not p.is_file():
             print(f"check_slurm_run: FAIL: {p} missing", file=sys.stderr)
             return 1
-    failures = check_jobs(args.snakemake_log.read_text(), args.jobcomp.read_text(), args.slurm_logs, args.host)
+    failures = check_jobs(
+        args.snakemake_log.read_text(), args.jobcomp.read_text(), args.slurm_logs, args.host
+    )
     failures += check_outputs(args.local, args.cluster)
     for f in failures:
         print(f"check_slurm_run: FAIL: {f}", file=sys.stderr)
