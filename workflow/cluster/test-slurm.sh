@@ -23,7 +23,9 @@
 # Exit codes: 0 all checks hold, 77 skipped (not root, or slurm-wlm/munge not installable),
 # anything else a failure.
 # Environment: CRGPR_SLURM_TIMEOUT (seconds for the Slurm run, default 1200),
-# CRGPR_SLURM_KEEP=1 keeps the scratch directory, CRGPR_SLURM_SCRATCH sets its parent (/tmp).
+# CRGPR_SLURM_KEEP=1 keeps the scratch directory, CRGPR_SLURM_SCRATCH sets its parent (/tmp),
+# CRGPR_SLURM_LOCAL_RUN=DIR puts the local run in DIR instead (kept; Snakemake only runs what is
+# missing there, so a finished local run of the same code is reused).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -34,9 +36,12 @@ TIMING_ORDER=()
 PIDS=()            # daemons we started, stopped in reverse order
 SCRATCH=""
 SLURM_UP=0
+DEFAULT_CONF=/etc/slurm/slurm.conf
+CONF_LINK=""       # the symlink we made at DEFAULT_CONF, removed on exit
 
 log() { echo "test-slurm: $*"; }
 die() { echo "test-slurm: FAIL: $*" >&2; exit 1; }
+skip() { echo "test-slurm: SKIPPED: $*"; exit 77; }
 step_start() { STEP_NAME=$1; STEP_T0=$(date +%s); log "== $1"; }
 step_end() { TIMINGS[$STEP_NAME]=$(( $(date +%s) - STEP_T0 )); TIMING_ORDER+=("$STEP_NAME"); }
 
@@ -72,6 +77,17 @@ cleanup() {
         stop_pid "${PIDS[$i]%%:*}" "${PIDS[$i]#*:}"
     done
     for i in "${PIDS[@]}"; do alive "${i%%:*}" && left+=("$i"); done
+    if [[ -n $CONF_LINK && -L $CONF_LINK && $(readlink "$CONF_LINK") == "$SLURM_CONF" ]]; then
+        rm -f "$CONF_LINK"
+    fi
+    # Any process still naming the scratch directory (a job's script) is ours and must not stay.
+    if [[ -n $SCRATCH ]]; then
+        for pid in $(pgrep -f -- "$SCRATCH/" 2>/dev/null); do
+            [[ $pid == "$$" ]] && continue
+            left+=("$pid:$(tr '\0' ' ' < "/proc/$pid/cmdline" 2>/dev/null | cut -c1-80)")
+            kill -KILL "$pid" 2>/dev/null
+        done
+    fi
     if (( ${#left[@]} )); then
         echo "test-slurm: FAIL: still running: ${left[*]}" >&2; rc=1
     fi
@@ -99,9 +115,8 @@ cluster_name() { echo crgprtest; }
 main() {
 
 # ---------------------------------------------------------------------------------------------
-    step_start "install (apt-get, pip)"
+step_start "install (apt-get, pip)"
 # Exit 77 (skipped) where this machine cannot host the test cluster at all.
-skip() { echo "test-slurm: SKIPPED: $*"; exit 77; }
 [[ $(id -u) == 0 ]] || skip "needs root (apt-get, munged, slurmd)"
 command -v python >/dev/null || die "no python on PATH: activate the project's venv first"
 if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! command -v munged >/dev/null; then
@@ -126,7 +141,7 @@ log "slurm $(slurmctld -V | awk '{print $2}'), $(munged -V | awk '{print $1}'), 
 step_end
 
 # ---------------------------------------------------------------------------------------------
-    step_start "start munged, slurmctld, slurmd"
+step_start "start munged, slurmctld, slurmd"
 SCRATCH=$(mktemp -d "${CRGPR_SLURM_SCRATCH:-/tmp}/crgpr-slurm.XXXXXX")
 chmod 755 "$SCRATCH"   # munged runs as the munge user and must reach its own directory
 mkdir -p "$SCRATCH"/{etc,munge,munge-key,state,spool,log}
@@ -198,6 +213,13 @@ JobCompLoc=$SCRATCH/log/jobcomp.txt
 NodeName=$HOST NodeAddr=127.0.0.1 CPUs=$CPUS RealMemory=$MEM_MB State=UNKNOWN
 PartitionName=test Nodes=$HOST Default=YES MaxTime=INFINITE State=UP
 EOF
+# The job-step side of the plugin (snakemake-executor-plugin-slurm-jobstep) drops SLURM_CONF
+# from the environment of the `srun` it runs inside each job, so srun must find the config at
+# the default path: a symlink there, made only if there is none, removed on exit.
+[[ -e $DEFAULT_CONF || -L $DEFAULT_CONF ]] && skip "$DEFAULT_CONF exists: this machine has its own Slurm"
+mkdir -p "$(dirname "$DEFAULT_CONF")"
+ln -s "$SLURM_CONF" "$DEFAULT_CONF"
+CONF_LINK=$DEFAULT_CONF
 slurmctld -D -c -f "$SLURM_CONF" > "$SCRATCH/log/slurmctld.out" 2>&1 &
 PIDS+=("$!:slurmctld")
 SLURM_UP=1
@@ -215,12 +237,13 @@ step_end
 # ---------------------------------------------------------------------------------------------
 SMOKE=("all" --snakefile "$ROOT/Snakefile" --configfile "$ROOT/tests/smoke_config.yaml")
 
-    step_start "local smoke run (-j$CPUS)"
-snakemake "${SMOKE[@]}" -d "$SCRATCH/local" --workflow-profile "$ROOT/profiles/default" -j "$CPUS" \
+LOCAL=${CRGPR_SLURM_LOCAL_RUN:-$SCRATCH/local}
+step_start "local smoke run (-j$CPUS)"
+snakemake "${SMOKE[@]}" -d "$LOCAL" --workflow-profile "$ROOT/profiles/default" -j "$CPUS" \
     > "$SCRATCH/local.log" 2>&1 || { tail -40 "$SCRATCH/local.log" >&2; die "local smoke run failed"; }
 step_end
 
-    step_start "smoke run through the SLURM executor"
+step_start "smoke run through the SLURM executor"
 # The two flags are for this cluster without accounting (no sacct): poll with squeue, first
 # poll after 5 s (the plugin accepts squeue only if MinJobAge >= 3 x that delay).
 set +e
@@ -238,11 +261,11 @@ fi
 step_end
 
 # ---------------------------------------------------------------------------------------------
-    step_start "checks"
+step_start "checks"
 python "$ROOT/workflow/cluster/check_slurm_run.py" \
     --snakemake-log "$SCRATCH/slurm.log" --jobcomp "$SCRATCH/log/jobcomp.txt" \
     --slurm-logs "$SCRATCH/slurm/.snakemake/slurm_logs" \
-    --local "$SCRATCH/local" --cluster "$SCRATCH/slurm" --host "$HOST"
+    --local "$LOCAL" --cluster "$SCRATCH/slurm" --host "$HOST"
 step_end
 }
 
