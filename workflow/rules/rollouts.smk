@@ -22,7 +22,7 @@ rule rollout:
     threads: 1
     resources:
         mem_mb=1000,
-        runtime=10,
+        runtime=5,
     conda:
         ENV
     script:
