@@ -172,8 +172,8 @@ def test_non_timing_metadata_and_text_must_match(tmp_path):
     theta = np.array([1.0, 0.25, 0.5])
     a = _run_tree(tmp_path / "a", theta, 1.0, 0.1, "2.5")
     b = _run_tree(tmp_path / "b", theta, 1.0, 0.1, "2.5")
-    write_parquet(pd.DataFrame({"t": [0.0, 0.1, 0.2], "theta": theta}), b / "results" / "rollouts" / "60.parquet",
-                  {"seconds": 1.0, "dt_s": 2e-4})
+    frame = pd.DataFrame({"t": [0.0, 0.1, 0.2], "theta": theta})
+    write_parquet(frame, b / "results" / "rollouts" / "60.parquet", {"seconds": 1.0, "dt_s": 2e-4})
     (b / "results" / "tables" / "report.md").write_text("# x\n\nGap 0.16 rad.\nRun time 2.5 s.\n")
     (b / "results" / "tables" / "extra.png").write_bytes(b"png")
     failures = check.check_outputs(a, b)

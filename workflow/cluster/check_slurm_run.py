@@ -12,8 +12,8 @@ per failed check and exits 1.
    (jobcomp ``ProcCnt``, ``Tres mem``, ``TimeLimit``) equal the rule's ``threads``, ``mem_mb``
    (MB) and ``runtime`` (minutes) as Snakemake printed them for that job.
 3. Outputs equal those of the local run. The two ``results/`` trees hold the same files, and
-   - Parquet: same columns, dtypes and values (bit-equal; NaN equals NaN) and the same crgpr
-     metadata (``crgpr.io.read_metadata``) except timing keys;
+   - Parquet: same columns, dtypes and values (bit-equal; NaN equals NaN) except timing
+     columns, and the same crgpr metadata (``crgpr.io.read_metadata``) except timing keys;
    - JSON: equal after dropping timing keys at any depth;
    - ``.npz``: same array names, shapes, dtypes and bit-equal values;
    - ``.pt`` (PINN state dicts, loaded with ``weights_only=True``): bit-equal tensors;
@@ -24,7 +24,10 @@ per failed check and exits 1.
    - PNG and anything else: byte-equal.
    Timing keys/columns are wall-clock measurements: metadata/JSON keys ``seconds``,
    ``seconds_hyper``, ``seconds_rollout``, ``fit_seconds``, ``train_seconds``, ``sampling_s``,
-   ``runtime_s``; table columns ``minutes``, ``train_seconds``, ``runtime_s``.
+   ``runtime_s`` and the ``timing_s`` dict; table columns ``minutes``, ``train_seconds``,
+   ``runtime_s``, ``wall_s`` (Parquet and CSV). ``code_version`` (package version + git commit)
+   is compared like any other key: a local run made at another commit does not count;
+   ``--ignore-code-version`` allows it where the commits differ only outside ``src/``.
 """
 
 from __future__ import annotations
@@ -41,9 +44,9 @@ import pandas as pd
 
 TIMING_KEYS = frozenset(
     {"seconds", "seconds_hyper", "seconds_rollout", "fit_seconds", "train_seconds", "sampling_s",
-     "runtime_s"}
+     "runtime_s", "timing_s"}
 )
-TIMING_COLUMNS = frozenset({"minutes", "train_seconds", "runtime_s"})
+TIMING_COLUMNS = frozenset({"minutes", "train_seconds", "runtime_s", "wall_s"})
 # paper_vs_reproduction.csv: the timing rows' measured columns
 TIMING_ROW_SOURCE = "Table (timing)"
 TIMING_ROW_COLUMNS = ("ours", "abs_diff", "rel_diff")
@@ -194,7 +197,9 @@ def frames_equal(a: pd.DataFrame, b: pd.DataFrame) -> str | None:
 def compare_parquet(a: Path, b: Path) -> str | None:
     from crgpr.io import read_metadata
 
-    why = frames_equal(pd.read_parquet(a), pd.read_parquet(b))
+    da, db = (d.drop(columns=[c for c in d.columns if c in TIMING_COLUMNS])
+              for d in (pd.read_parquet(a), pd.read_parquet(b)))
+    why = frames_equal(da, db)
     if why:
         return why
     ma, mb = drop_timing(read_metadata(a)), drop_timing(read_metadata(b))
@@ -321,6 +326,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--local", type=Path, required=True, help="working directory of the local run")
     ap.add_argument("--cluster", type=Path, required=True, help="working directory of the Slurm run")
     ap.add_argument("--host", help="node every job must have run on")
+    ap.add_argument("--ignore-code-version", action="store_true",
+                    help="do not compare the code_version metadata key (runs made at different commits)")
     args = ap.parse_args(argv)
     for p in (args.snakemake_log, args.jobcomp):
         if not p.is_file():
@@ -329,6 +336,10 @@ def main(argv: list[str] | None = None) -> int:
     failures = check_jobs(
         args.snakemake_log.read_text(), args.jobcomp.read_text(), args.slurm_logs, args.host
     )
+    if args.ignore_code_version:
+        global TIMING_KEYS
+        TIMING_KEYS = TIMING_KEYS | {"code_version"}
+        print("check_slurm_run: code_version not compared (--ignore-code-version)")
     failures += check_outputs(args.local, args.cluster)
     for f in failures:
         print(f"check_slurm_run: FAIL: {f}", file=sys.stderr)
