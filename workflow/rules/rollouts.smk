@@ -21,7 +21,7 @@ rule rollout:
         "benchmarks/rollouts/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV
