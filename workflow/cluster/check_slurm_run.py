@@ -164,12 +164,19 @@ def check_jobs(log_text: str, jobcomp_text: str, slurm_logs: Path, host: str | N
 # ---------------------------------------------------------------- outputs
 
 
+CODE_VERSION = re.compile(r"^\d+\.\d+\.\d+(\+g[0-9a-f]+)?$")
+IGNORE_CODE_VERSION = False  # set by --ignore-code-version
+
+
 def drop_timing(obj: Any) -> Any:
-    """``obj`` without timing keys, at any depth."""
+    """``obj`` without timing keys, at any depth (and, with --ignore-code-version, with every
+    code-version string, e.g. the ``inputs`` map of input file -> code version, masked)."""
     if isinstance(obj, dict):
         return {k: drop_timing(v) for k, v in obj.items() if k not in TIMING_KEYS}
     if isinstance(obj, list):
         return [drop_timing(v) for v in obj]
+    if IGNORE_CODE_VERSION and isinstance(obj, str) and CODE_VERSION.match(obj):
+        return "<code_version>"
     return obj
 
 
@@ -337,8 +344,8 @@ def main(argv: list[str] | None = None) -> int:
         args.snakemake_log.read_text(), args.jobcomp.read_text(), args.slurm_logs, args.host
     )
     if args.ignore_code_version:
-        global TIMING_KEYS
-        TIMING_KEYS = TIMING_KEYS | {"code_version"}
+        global IGNORE_CODE_VERSION
+        IGNORE_CODE_VERSION = True
         print("check_slurm_run: code_version not compared (--ignore-code-version)")
     failures += check_outputs(args.local, args.cluster)
     for f in failures:

@@ -101,8 +101,8 @@ rule blackbox_rollout:
         "benchmarks/baselines/blackbox_rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=15,
+        mem_mb=500,
+        runtime=10,
     conda:
         ENV
     script:

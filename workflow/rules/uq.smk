@@ -43,7 +43,7 @@ rule uq_rollout:
         "benchmarks/uq/rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV
