@@ -180,3 +180,12 @@ def test_non_timing_metadata_and_text_must_match(tmp_path):
     assert any("metadata differs" in f and "dt_s" in f for f in failures), failures
     assert any("report.md: line 3" in f for f in failures), failures
     assert any("only in the Slurm run" in f for f in failures), failures
+
+
+def test_code_version_is_compared_unless_ignored(monkeypatch):
+    a = {"code_version": "0.1.0+ga382ee9", "inputs": {"x.parquet": "0.1.0+ga382ee9"}, "seconds": 1.0}
+    b = {"code_version": "0.1.0+ged3b20f", "inputs": {"x.parquet": "0.1.0+ged3b20f"}, "seconds": 2.0}
+    differing = check.diff_keys(check.drop_timing(a), check.drop_timing(b))
+    assert differing == [".code_version", ".inputs.x.parquet"]
+    monkeypatch.setattr(check, "IGNORE_CODE_VERSION", True)
+    assert check.diff_keys(check.drop_timing(a), check.drop_timing(b)) == []
