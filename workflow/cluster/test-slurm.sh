@@ -25,7 +25,8 @@
 # Environment: CRGPR_SLURM_TIMEOUT (seconds for the Slurm run, default 1200),
 # CRGPR_SLURM_KEEP=1 keeps the scratch directory, CRGPR_SLURM_SCRATCH sets its parent (/tmp),
 # CRGPR_SLURM_LOCAL_RUN=DIR puts the local run in DIR instead (kept; Snakemake only runs what is
-# missing there, so a finished local run of the same code is reused).
+# missing there, so a finished local run is reused; one made at another commit fails the
+# code_version comparison).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
