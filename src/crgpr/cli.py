@@ -7,15 +7,14 @@ import importlib
 import logging
 import sys
 
-# Modules that provide ``add_cli(subparsers)``; a stage adds itself here.
+# Modules that provide ``add_cli(subparsers)`` (``crgpr.commands.<stage>``); a stage adds itself here.
 COMMAND_MODULES: list[str] = [
     "crgpr.commands.simulate",
-    "crgpr.report.paper",
+    "crgpr.commands.prefilter",
+    "crgpr.commands.models",
+    "crgpr.commands.rollout",
+    "crgpr.commands.report",
     "crgpr.discovery.selection",
-    "crgpr.learning.prefilter",
-    "crgpr.learning.gradient_models",
-    "crgpr.learning.learned",
-    "crgpr.report.metrics",
 ]
 
 
@@ -34,8 +33,9 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
     try:
         args.func(args)
-    except (ValueError, FileNotFoundError, RuntimeError) as exc:
-        print(f"crgpr {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError, RuntimeError) as exc:  # ConfigError is a ValueError
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"crgpr {args.command}: error: {msg}", file=sys.stderr)
         return 2
     return 0
 

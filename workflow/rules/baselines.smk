@@ -1,5 +1,5 @@
-# Baselines of the paper's "Baseline Comparisons" (issue 4): physics-only and data-assisted
-# PINNs (N_init = 1, 8) and the black-box GP (N_init = 1), with the comparison table/figure.
+# Baselines (paper Sec. V, "Baseline Comparisons"): physics-only and data-assisted PINNs
+# (N_init = 1, 8) and the black-box GP (N_init = 1), with the comparison table and figure.
 
 PINN_VARIANTS = ["pinn_physics", "pinn_data_1", "pinn_data_8"]
 BASELINE_METHODS = ["blackbox_gp", *PINN_VARIANTS]
@@ -10,6 +10,10 @@ PINN_DATA_ANGLES = {
     "pinn_data_1": [config["angles"]["train_deg"]],
     "pinn_data_8": list(config["angles"]["pinn_train_deg"]),
 }
+# the config keys naming each variant's training angles (none for the physics-only PINN)
+PINN_ANGLE_KEYS = {"pinn_physics": [], "pinn_data_1": ["angles.train_deg"],
+                   "pinn_data_8": ["angles.pinn_train_deg"]}
+PINN_PARAMS = ["seed", "rod", "simulation.t_end_s", "baselines.pinn"]
 
 
 rule pinn_train:
@@ -19,6 +23,9 @@ rule pinn_train:
     output:
         weights=f"{RESULTS}/baselines/pinn/{{variant}}.pt",
         history=f"{RESULTS}/baselines/pinn/{{variant}}_loss.parquet",
+    params:
+        cfg=lambda wc: cfg_params(*PINN_PARAMS, *PINN_ANGLE_KEYS[wc.variant]),
+        angles=lambda wc: PINN_DATA_ANGLES[wc.variant],
     wildcard_constraints:
         variant="|".join(PINN_VARIANTS),
     log:
@@ -42,6 +49,8 @@ rule pinn_rollout:
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
     output:
         f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
+    params:
+        cfg=cfg_params("rod", "simulation.t_end_s", "baselines.pinn"),
     wildcard_constraints:
         method="|".join(PINN_VARIANTS),
         angle=r"-?\d+",
@@ -72,6 +81,8 @@ rule blackbox_train:
     output:
         models=directory(f"{RESULTS}/baselines/blackbox_gp/models"),
         summary=f"{RESULTS}/baselines/blackbox_gp/summary.json",
+    params:
+        cfg=cfg_params("seed", "rod", "baselines.blackbox_gp", "gradient_models.theta_wrap"),
     log:
         "logs/baselines/blackbox_train.log",
     benchmark:
@@ -93,6 +104,8 @@ rule blackbox_rollout:
         summary=f"{RESULTS}/baselines/blackbox_gp/summary.json",
     output:
         f"{RESULTS}/rollouts/blackbox_gp/{{angle}}.parquet",
+    params:
+        cfg=cfg_params("rod", "simulation"),
     wildcard_constraints:
         angle=r"-?\d+",
     log:
@@ -137,6 +150,7 @@ rule baselines_table:
     params:
         methods=BASELINE_METHODS,
         variants=PINN_VARIANTS,
+        cfg=cfg_params("angles.test_deg"),
     log:
         "logs/baselines/baselines_table.log",
     benchmark:
