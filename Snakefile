@@ -25,7 +25,8 @@ check_config(config, "config")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"
-include: "workflow/rules/baselines.smk"
+include: "workflow/rules/blackbox.smk"
+include: "workflow/rules/pinn.smk"
 include: "workflow/rules/prefilter.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/rollout.smk"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from crgpr.baselines import blackbox
-from crgpr.commands.baselines import blackbox_rollout, blackbox_train
+from crgpr.commands.blackbox import blackbox_rollout, blackbox_train
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata, read_parquet, write_parquet
 from crgpr.learning.prefilter import PrefilterSettings, prefilter

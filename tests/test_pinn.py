@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from crgpr.baselines import pinn
-from crgpr.commands.baselines import pinn_rollout, pinn_train
+from crgpr.commands.pinn import pinn_rollout, pinn_train
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_parquet, write_parquet
 from crgpr.physics.params import RodParams

@@ -10,6 +10,7 @@ not catch NaN.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from importlib import resources
 from pathlib import Path
@@ -22,7 +23,10 @@ from crgpr.physics.params import PARAM_FIELDS, RodParams, SimSettings
 
 
 class ConfigError(ValueError):
-    """A configuration value is missing, unknown, of the wrong type or out of range."""
+    """A configuration value is missing, unknown, of the wrong type or out of range (one line)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 def schema() -> dict[str, Any]:
@@ -36,16 +40,21 @@ def schema_path() -> Path:
 
 
 def _dotted(path: Any) -> str:
-    return ".".join(str(p) for p in path) or "<top level>"
+    """``rod.L0``; a key that is not a plain word is shown quoted (``rod.'L 0'``)."""
+    parts = [str(p) if isinstance(p, int) or (isinstance(p, str) and p.isidentifier()) else repr(p)
+             for p in path]
+    return ".".join(parts) or "<top level>"
 
 
+@functools.cache
 def _validator() -> jsonschema.Draft202012Validator:
     """Validator of the main schema; relative ``$ref``s (stage sections) load from its folder."""
     from referencing import Registry, Resource
 
     base = schema_path().parent
 
-    def retrieve(uri: str) -> Resource:
+    @functools.cache
+    def retrieve(uri: str) -> Resource:  # cached: the registry does not keep what it retrieves
         rel = uri.split("schemas/", 1)[-1] if "schemas/" in uri else uri
         return Resource.from_contents(yaml.safe_load((base / rel).read_text()))
 
@@ -78,9 +87,8 @@ def _schema_errors(validator: jsonschema.protocols.Validator, value: Any, source
         path = (*prefix, *e.absolute_path)
         key = _dotted(path)
         if e.validator == "additionalProperties" and isinstance(e.instance, dict):
-            extra = sorted(str(x) for x in set(e.instance) - set(e.schema.get("properties", {})))
-            where = f"{key}." if path else ""
-            msgs.append(f"unknown key(s) {', '.join(where + x for x in extra)}")
+            extra = sorted((x for x in set(e.instance) - set(e.schema.get("properties", {}))), key=str)
+            msgs.append(f"unknown key(s) {', '.join(_dotted((*path, x)) for x in extra)}")
         else:
             msgs.append(f"{key}: {_short(e.message)}")
     raise ConfigError(f"{source}: invalid configuration: " + "; ".join(msgs))

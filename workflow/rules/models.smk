@@ -1,6 +1,6 @@
 # Gradient GPs (paper Sec. III-B step 3; Table IV "stage 2"): the six GPs of Table II (+ the
 # objective variant's three), one job per model, trained on the prefiltered training
-# trajectory; Table II.
+# trajectory.
 
 from crgpr.learning.learned import model_files as _model_files
 from crgpr.learning.learned import needed_model_jsons as _needed_model_jsons
@@ -40,28 +40,4 @@ rule gradient_model:
         "../scripts/gradient_model.py"
 
 
-rule table2:
-    input:
-        code=code_closure("table2.py"),
-        models=MODEL_JSONS,
-    output:
-        report(
-            f"{RESULTS}/tables/table2_hyperparameters.csv",
-            caption="../report/table2.rst",
-            category="CR-GPR (Tables II, III, V)",
-        ),
-    log:
-        "logs/tables/table2.log",
-    benchmark:
-        "benchmarks/tables/table2.tsv"
-    threads: 1
-    resources:
-        mem_mb=500,
-        runtime=2,
-    conda:
-        ENV
-    script:
-        "../scripts/table2.py"
-
-
-ALL_TARGETS.extend([*MODEL_JSONS, f"{RESULTS}/tables/table2_hyperparameters.csv"])
+ALL_TARGETS.extend(MODEL_JSONS)

@@ -1,7 +1,8 @@
 # Reports: metrics of every rollout method in ROLLOUT_METHODS (common.smk; each stage extends
 # it) on the test angles (accuracy.parquet; the paper's Table III in table1_accuracy.csv and
-# Table V in table4_ablation.csv); CR-GPR figures (paper Figs. 3-5); the timing table (Table IV)
-# from the benchmark files; every table and claim of the paper beside ours.
+# Table V in table4_ablation.csv); CR-GPR figures (paper Figs. 3-5); Table II; the baseline
+# comparison; the timing table (Table IV) from the benchmark files; every table and claim of
+# the paper beside ours.
 
 
 rule metrics:
@@ -93,6 +94,78 @@ ALL_TARGETS.extend([
     *expand(f"{RESULTS}/figures/{{method}}_{{kind}}_{{angle}}.png", method=CRGPR_METHODS,
             kind=["overlays", "shapes", "energy"], angle=[_FIG_ANGLE]),
 ])
+rule table2:
+    input:
+        code=code_closure("table2.py"),
+        models=MODEL_JSONS,
+    output:
+        report(
+            f"{RESULTS}/tables/table2_hyperparameters.csv",
+            caption="../report/table2.rst",
+            category="CR-GPR (Tables II, III, V)",
+        ),
+    log:
+        "logs/tables/table2.log",
+    benchmark:
+        "benchmarks/tables/table2.tsv"
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
+    conda:
+        ENV
+    script:
+        "../scripts/table2.py"
+
+
+ALL_TARGETS.append(f"{RESULTS}/tables/table2_hyperparameters.csv")
+
+
+# The baselines beside the paper's CR-GPR and ours (paper Sec. V, "Baseline Comparisons")
+BASELINE_METHODS = ["blackbox_gp", *PINN_VARIANTS]
+
+
+rule baselines_table:
+    input:
+        code=code_closure("baselines_table.py"),
+        accuracy=f"{RESULTS}/metrics/accuracy.parquet",
+        rollouts=expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=BASELINE_METHODS,
+                        angle=config["angles"]["test_deg"]),
+        ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        histories=expand(f"{RESULTS}/baselines/pinn/{{variant}}_loss.parquet", variant=PINN_VARIANTS),
+    output:
+        table=report(
+            f"{RESULTS}/tables/baselines.csv",
+            caption="../report/baselines_table.rst",
+            category="Baselines",
+        ),
+        notes=f"{RESULTS}/tables/baselines_notes.md",
+        figure=report(
+            f"{RESULTS}/figures/baselines.png",
+            caption="../report/baselines_figure.rst",
+            category="Baselines",
+        ),
+    params:
+        methods=BASELINE_METHODS,
+        variants=PINN_VARIANTS,
+        cfg=cfg_params("angles.test_deg"),
+    log:
+        "logs/baselines/baselines_table.log",
+    benchmark:
+        "benchmarks/baselines/baselines_table.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/baselines_table.py"
+
+
+ALL_TARGETS.extend(rules.baselines_table.output)
+
+
 # The paper regenerated: timing from the benchmark files (Table IV "stages" 1-4 = prefilter,
 # gradient GPs, one rollout, UQ), then every table and claim of the paper beside ours
 # (results/tables/paper_vs_reproduction.{csv,md}).

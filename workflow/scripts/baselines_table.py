@@ -1,4 +1,4 @@
-from crgpr.commands.baselines import baselines_table
+from crgpr.commands.report import baselines_table
 from crgpr.commands.smk import run_rule
 
 n = len(snakemake.params.cfg["angles"]["test_deg"])

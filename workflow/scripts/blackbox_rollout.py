@@ -1,4 +1,4 @@
-from crgpr.commands.baselines import blackbox_rollout
+from crgpr.commands.blackbox import blackbox_rollout
 from crgpr.commands.smk import run_rule
 
 run_rule(snakemake, blackbox_rollout, cfg=snakemake.params.cfg, model_dir=snakemake.input.models,

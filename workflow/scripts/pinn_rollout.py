@@ -1,4 +1,4 @@
-from crgpr.commands.baselines import pinn_rollout
+from crgpr.commands.pinn import pinn_rollout
 from crgpr.commands.smk import run_rule
 
 run_rule(snakemake, pinn_rollout, cfg=snakemake.params.cfg, variant=snakemake.wildcards.method,

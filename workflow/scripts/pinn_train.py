@@ -1,4 +1,4 @@
-from crgpr.commands.baselines import pinn_train
+from crgpr.commands.pinn import pinn_train
 from crgpr.commands.smk import run_rule
 
 o = snakemake.output

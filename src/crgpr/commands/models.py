@@ -1,8 +1,8 @@
-"""Gradient GPs, step 3 of the paper's Sec. III-B: rules ``gradient_model`` and ``table2``, and
+"""Gradient GPs, step 3 of the paper's Sec. III-B: rule ``gradient_model`` and
 ``crgpr train-gradient-model``.
 
 Writes ``results/models/{prefilter}/{model}.npz`` + ``.json`` (algorithm:
-``crgpr.learning.gradient_models``) and ``results/tables/table2_hyperparameters.csv``.
+``crgpr.learning.gradient_models``; their Table II is the report stage's ``table2``).
 """
 
 from __future__ import annotations
@@ -12,20 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from crgpr.config import load_config
-from crgpr.io import write_csv
 from crgpr.learning import gradient_models as gm
-from crgpr.report import hyperparameters
 
 
 def gradient_model(cfg: dict[str, Any], model: str, prefilter_method: str, prefiltered: str,
                    out_npz: str) -> None:
     """Rule ``gradient_model``: fit one gradient GP on the prefiltered training trajectory."""
     gm.train_model(cfg, model, prefiltered, Path(out_npz).with_suffix(""), prefilter_method)
-
-
-def table2(model_jsons: list[str], out: str) -> None:
-    """Rule ``table2``: the hyperparameters of every fitted model beside the paper's Table II."""
-    write_csv(hyperparameters.table2(model_jsons), out)
 
 
 def add_cli(sub: argparse._SubParsersAction) -> None:

@@ -1,23 +1,30 @@
-"""Reports: rules ``metrics``, ``figures_crgpr``, ``timing`` and ``paper_tables``; the commands
-``crgpr accuracy`` and ``crgpr paper-tables``.
+"""Reports: rules ``metrics``, ``figures_crgpr``, ``table2``, ``baselines_table``, ``timing`` and
+``paper_tables``; the commands ``crgpr accuracy`` and ``crgpr paper-tables``.
 
 Algorithms: ``crgpr.report.metrics`` (accuracy, Tables III and V), ``crgpr.report.figures``,
+``crgpr.report.hyperparameters`` (Table II), ``crgpr.report.comparison`` (the baselines),
 ``crgpr.report.timing`` (Table IV), ``crgpr.report.paper`` (every number of the paper beside ours).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 from pathlib import Path
 from typing import Any
 
-from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+import numpy as np
+
+from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet, write_text
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.report import comparison, hyperparameters
 from crgpr.report import figures as figures_mod
 from crgpr.report import metrics as metrics_mod
 from crgpr.report import paper as paper_mod
 from crgpr.report import timing as timing_mod
+
+log = logging.getLogger(__name__)
 
 
 def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
@@ -51,6 +58,45 @@ def figures_crgpr(cfg: dict[str, Any], method: str, angle: float, gt_train: str,
     figures_mod.overlays(gtt, pred, overlays_out, method, angle)
     figures_mod.shapes(read_parquet(gt_train), gtt, pred, shapes_out, method, train, angle)
     figures_mod.energy(read_parquet(rollout_energy), read_parquet(gt_test_energy), energy_out, method, angle)
+
+
+def table2(model_jsons: list[str], out: str) -> None:
+    """Rule ``table2``: the hyperparameters of every fitted gradient GP beside the paper's Table II."""
+    write_csv(hyperparameters.table2(model_jsons), out)
+
+
+def baselines_table(cfg: dict[str, Any], accuracy: str, rollouts: dict[str, list[str]],
+                    ground_truth: list[str], pinn_histories: dict[str, str], table: str, notes: str,
+                    figure: str) -> None:
+    """Rule ``baselines_table``: table, notes and figure from the metrics and rollouts."""
+    angles = [int(a) for a in cfg["angles"]["test_deg"]]
+    acc = read_parquet(accuracy, required=["method", "theta0_deg", *comparison.METRICS])
+    truth = {int(round(float(read_parquet(p, required=["theta0_deg"])["theta0_deg"].iloc[0]))): p
+             for p in ground_truth}
+    extra: dict[str, dict[str, Any]] = {}
+    for method, files in rollouts.items():
+        ratios, div = [], []
+        for f in files:
+            pred = read_parquet(f, required=["theta0_deg", "node", "theta"])
+            a = int(round(float(pred["theta0_deg"].iloc[0])))
+            ratios.append(comparison.motion_ratio(pred, read_parquet(truth[a])))
+            meta = read_metadata(f)
+            if meta.get("diverged"):
+                div.append(f"{a} deg at t = {meta.get('t_diverged'):.3g} s, node {meta.get('node_diverged')}")
+        extra[method] = {"motion_ratio": float(np.mean(ratios)), "n_diverged": len(div),
+                         "diverged_at": "; ".join(div)}
+    for method, path in pinn_histories.items():
+        h = read_parquet(path, required=["loss", "loss_momentum", "loss_data"])
+        meta = read_metadata(path)
+        extra.setdefault(method, {}).update({
+            "train_seconds": meta.get("train_seconds"),
+            "final_loss_momentum": float(h["loss_momentum"].iloc[-1]),
+            "final_loss_data": float(h["loss_data"].iloc[-1])})
+    df = comparison.baseline_table(acc, angles, extra)
+    write_csv(df, table, float_format="%.6g")
+    write_text(comparison.notes_markdown(df, angles), notes)
+    comparison.plot_baselines(df, figure)
+    log.info("baselines table:\n%s", df.to_string())
 
 
 def timing(stage_files: dict[str, dict[str, list[str]]], out: str) -> None:
