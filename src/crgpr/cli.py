@@ -7,6 +7,8 @@ import importlib
 import logging
 import sys
 
+from crgpr.commands.smk import limit_threads
+
 # Modules that provide ``add_cli(subparsers)`` (``crgpr.commands.<stage>``); a stage adds itself here.
 COMMAND_MODULES: list[str] = [
     "crgpr.commands.simulate",
@@ -31,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    limit_threads()  # the same numbers as the pipeline's rules, whatever the core count
     try:
         args.func(args)
     except (ValueError, OSError, RuntimeError) as exc:  # ConfigError is a ValueError

@@ -44,11 +44,16 @@ def _sorted(value: Any) -> Any:
 
 
 def limit_threads() -> None:
-    """One BLAS/OpenMP thread in this process (bit-identical reruns; see ``run_rule``)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
-        return
+    """One BLAS/OpenMP thread in every numerical library loaded so far.
+
+    OpenBLAS splits its work by thread count, so the last bits of a GP fit depend on it
+    (measured: the GP prefilter's derivatives move by ~1e-8 between 1 and 2 threads, and
+    the paper-feature CR-GPR rollout amplifies such differences). Snakemake already sets
+    ``OPENBLAS_NUM_THREADS`` etc. to a rule's ``threads`` (1 here); this makes the same hold
+    for the command line and for any executor.
+    """
+    from threadpoolctl import threadpool_limits
+
     threadpool_limits(1)
 
 
@@ -63,6 +68,7 @@ def run_rule(smk: Any, func: Callable[..., None], **kwargs: Any) -> None:
     sys.stderr = stream
     logging.basicConfig(stream=stream, level=logging.INFO, force=True,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    limit_threads()
     try:
         func(**kwargs)
     except Exception:
