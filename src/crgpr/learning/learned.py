@@ -1,4 +1,4 @@
-"""Step 4: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (nonpde)).
+"""Step 4: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (17)).
 
     dz/dt = (J - R) H_z_hat(z) + G u
 
@@ -172,7 +172,7 @@ class LearnedRod:
     @classmethod
     def from_dir(cls, model_dir: str | Path, features: str, params: RodParams,
                  momentum_dir: str | Path | None = None) -> LearnedRod:
-        """The rollout approximations of the models saved in ``model_dir`` (stage 2 output)."""
+        """The rollout approximations of the models saved in ``model_dir`` (step 3 output)."""
         model_dir = Path(model_dir)
         momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
         names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
