@@ -19,8 +19,8 @@ rule blackbox_train:
         "benchmarks/baselines/blackbox_train.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=15,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:
@@ -44,8 +44,8 @@ rule blackbox_rollout:
         "benchmarks/baselines/blackbox_rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=15,
+        mem_mb=500,
+        runtime=10,
     conda:
         ENV
     script:

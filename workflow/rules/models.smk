@@ -32,8 +32,8 @@ rule gradient_model:
         "benchmarks/models/{prefilter}/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=4000,
-        runtime=15,
+        mem_mb=3250,
+        runtime=5,
     conda:
         ENV
     script:

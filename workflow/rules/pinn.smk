@@ -34,7 +34,7 @@ rule pinn_train:
     threads: 1  # torch on one thread: two threads on a shared 2-core box run 10x slower
     resources:
         mem_mb=3000,
-        runtime=15,
+        runtime=10,
     conda:
         ENV
     script:

@@ -111,7 +111,7 @@ rule table2:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:
