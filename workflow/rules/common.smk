@@ -33,7 +33,7 @@ ANGLES_GT = sorted(
 ALL_TARGETS = []
 
 # Rollout methods whose results/rollouts/{method}/{angle}.parquet the metrics rule gathers;
-# each stage that writes rollouts extends it (metrics.smk reads it lazily).
+# each stage that writes rollouts extends it (report.smk's metrics rule reads it lazily).
 ROLLOUT_METHODS = []
 
 
