@@ -1,4 +1,4 @@
-"""Black-box GP baseline (issue 4): features, fit, Verlet rollout, divergence record."""
+"""Black-box GP baseline (paper Sec. V): features, fit, Verlet rollout, divergence record."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from crgpr.baselines import blackbox
+from crgpr.commands.blackbox import blackbox_rollout, blackbox_train
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata, read_parquet, write_parquet
 from crgpr.learning.prefilter import PrefilterSettings, prefilter
@@ -29,7 +30,7 @@ def trained(tmp_path_factory):
     d = tmp_path_factory.mktemp("bb")
     pre = d / "pre.parquet"
     write_parquet(df, pre)
-    blackbox.rule_train(cfg, str(pre), str(d / "models"), str(d / "summary.json"))
+    blackbox_train(cfg, str(pre), str(d / "models"), str(d / "summary.json"))
     return cfg, d
 
 
@@ -59,7 +60,7 @@ def test_blackbox_trains_and_rolls_out_on_the_smoke_config(trained, tmp_path):
     np.testing.assert_allclose(gps[0].predict(X), X[:, 6] / params.rhoA, rtol=0.05, atol=0.02)
     angle = cfg["angles"]["test_deg"][0]
     out = tmp_path / f"{angle}.parquet"
-    blackbox.rule_rollout(cfg, str(d / "models"), str(d / "summary.json"), angle, str(out))
+    blackbox_rollout(cfg, str(d / "models"), str(d / "summary.json"), angle, str(out))
     df = read_parquet(out, required=TRAJECTORY_COLUMNS)
     n_t = sim_settings(cfg).n_records
     assert len(df) == n_t * (params.N + 1)

@@ -1,4 +1,4 @@
-"""Stage 2 (crgpr.learning.features, .gradient_models): targets, training on the smoke config, files."""
+"""Step 3 (crgpr.learning.features, .gradient_models): targets, training on the smoke config, files."""
 
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ from crgpr.learning.gradient_models import (
     _gp_like,
     dtc_fit,
     dtc_predict,
-    table2,
     train_model,
 )
 from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
 from crgpr.physics.rod import strains, variational_derivative
 from crgpr.physics.simulate import simulate
+from crgpr.report.hyperparameters import table2
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -113,7 +113,7 @@ def test_train_models_on_smoke_prefilter(smoke, tmp_path):
     n1 = Approx(tmp_path / "obj_n1")
     slope = (n1(np.array([[1.001, 0.0, 0.0]])) - n1(np.array([[0.999, 0.0, 0.0]])))[0] / 0.002
     assert slope == pytest.approx(P.EA, rel=0.1)
-    df = table2([tmp_path / f"{n}.json" for n in ("q_x", "dH_dp_x")], tmp_path / "t2.csv")
+    df = table2([tmp_path / f"{n}.json" for n in ("q_x", "dH_dp_x")])
     assert {"sigma_f", "lengthscales", "sigma_n", "n", "paper_sigma_f", "paper_n"} <= set(df.columns)
     assert df.loc[df["model"] == "q_x", "paper_n"].iloc[0] == 7910
     assert set(PAPER_MODELS) >= set(df["model"])

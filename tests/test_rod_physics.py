@@ -1,4 +1,4 @@
-"""Physics specification of the ground-truth rod (issue 2): energy, boundary conditions,
+"""Physics specification of the ground-truth rod (paper Sec. III-A, IV): energy, boundary conditions,
 statics against Euler-Bernoulli theory, spatial convergence, determinism, divergence."""
 
 from __future__ import annotations

@@ -1,7 +1,10 @@
 """Parquet / JSON / npz I/O: atomic writes, provenance metadata, schema checks.
 
 Every writer goes through a temporary file in the target directory and an atomic rename,
-so a failed or interrupted step never leaves a file that looks complete.
+so a failed or interrupted step never leaves a file that looks complete. Files get the
+usual permissions (0666 minus the umask, 0644 by default), not the 0600 of a temporary
+file. A whole output directory is written the same way (``atomic_dir``) under an exclusive
+lock, so two runs into one directory cannot both report success.
 """
 
 from __future__ import annotations
@@ -9,9 +12,11 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import functools
 import json
 import os
 import shutil
+import subprocess
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -27,21 +32,41 @@ from crgpr import __version__
 META_KEY = b"crgpr"
 
 
+# the tracked paths whose uncommitted changes mark the code version "dirty"
+_CODE_PATHS = ("src", "workflow", "Snakefile", "pyproject.toml")
+
+
+@functools.cache
 def code_version() -> str:
-    """Package version plus the git commit of the source tree when available."""
+    """Package version plus the git commit of the source tree when available.
+
+    ``0.1.0+g1a2b3c4`` for a clean checkout, ``0.1.0+g1a2b3c4.dirty`` when the code
+    (``src/``, ``workflow/``, ``Snakefile``, ``pyproject.toml``) has uncommitted changes,
+    ``0.1.0`` for an installed wheel. Results and the config are not code: a run that
+    rewrites committed tables does not make later stamps dirty, and the config values a
+    file depends on are in its own metadata.
+    """
     here = Path(__file__).resolve().parent
-    head = None
     for parent in [here, *here.parents]:
         if (parent / ".git").exists():
             try:
-                import subprocess
-
                 head = subprocess.run(["git", "-C", str(parent), "rev-parse", "--short", "HEAD"],
-                                      capture_output=True, text=True, timeout=5).stdout.strip()
+                                      capture_output=True, text=True, timeout=10).stdout.strip()
+                status = subprocess.run(["git", "-C", str(parent), "status", "--porcelain", "--",
+                                         *_CODE_PATHS], capture_output=True, text=True, timeout=10)
             except (OSError, subprocess.SubprocessError):
-                head = None
-            break
-    return f"{__version__}+g{head}" if head else __version__
+                return __version__
+            if not head:
+                return __version__
+            dirty = status.returncode != 0 or bool(status.stdout.strip())
+            return f"{__version__}+g{head}" + (".dirty" if dirty else "")
+    return __version__
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 @contextlib.contextmanager
@@ -54,18 +79,12 @@ def atomic_path(path: str | Path, suffix: str = "") -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        if tmp_path.exists():  # mkstemp makes 0600; give the file the permissions of open()
+            os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
-
-
-# output_lock / atomic_dir: the same helpers as on the workflow branch (issue 12), copied
-# here so that `crgpr discover` can lock and replace its output directory before that lands.
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 class OutputLocked(RuntimeError):

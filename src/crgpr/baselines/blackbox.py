@@ -35,7 +35,6 @@ metadata; the baselines table reports the count.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
@@ -46,15 +45,13 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.config import ConfigError
 from crgpr.gp import GP, basis_matrix_std, fit_gp
-from crgpr.io import read_parquet, write_json, write_parquet
 from crgpr.learning import features as ft
-from crgpr.learning.prefilter import D1_COLUMNS, PREFILTER_COLUMNS
+from crgpr.learning.prefilter import D1_COLUMNS
 from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import STATE_NAMES, straight_rod
-from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -210,54 +207,8 @@ def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSe
     return t, out_q, out_p, info
 
 
-# --------------------------------------------------------------------------------------
-# Snakemake entry points
-# --------------------------------------------------------------------------------------
-def rule_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary: str) -> None:
-    """Rule ``blackbox_train``: six GPs from the prefiltered training trajectory."""
-    params = rod_params(cfg)
-    st = blackbox_settings(cfg)
-    df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
-    F, Y, center = training_set(df, params, cfg)
-    seed = int(cfg["seed"]) + 4000
-    t0 = time.perf_counter()
-    gps = fit_blackbox(F, Y, st, seed)
-    out = Path(out_dir)
-    rows = []
-    for name, gp in zip(TARGETS, gps, strict=True):
-        gp.save(out / name, {"features": list(FEATURES), "target": name, "seed": seed,
-                             "theta_center": center})
-        rows.append({"model": name, **gp.hyperparameters(), "fit_seconds": gp.info["fit_seconds"]})
-    write_json({"kind": "blackbox_gp", "features": list(FEATURES), "targets": list(TARGETS),
-                "seed": seed, "theta_center": center, "source": str(prefiltered),
-                "seconds": time.perf_counter() - t0, "settings": st, "models": rows}, summary)
-
-
 def load_models(model_dir: str | Path) -> list[GP]:
     return [GP.load(Path(model_dir) / name) for name in TARGETS]
-
-
-def rule_rollout(cfg: dict[str, Any], model_dir: str, summary: str, angle: int, out: str) -> None:
-    """Rule ``blackbox_rollout``: integrate from the straight rod at ``angle`` deg."""
-    params, settings = rod_params(cfg), sim_settings(cfg)
-    meta = json.loads(Path(summary).read_text())
-    gps = load_models(model_dir)
-    t0 = time.perf_counter()
-    t, q, p, info = rollout(gps, float(angle), params, settings, meta["theta_center"])
-    n_t, n_nodes, _ = q.shape
-    df = pd.DataFrame({
-        "theta0_deg": np.full(n_t * n_nodes, float(angle)), "t": np.repeat(t, n_nodes),
-        "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t), "s": np.tile(params.s, n_t),
-    })
-    for c, name in enumerate(STATE_NAMES):
-        df[name] = (q if c < 3 else p)[..., c % 3].ravel()
-    write_parquet(df[list(TRAJECTORY_COLUMNS)], out,
-                  {"kind": "rollout", "method": "blackbox_gp", "theta0_deg": float(angle),
-                   "rod": params.to_dict(), "simulation": settings.to_dict(), "seed": meta["seed"],
-                   "seconds": time.perf_counter() - t0, **info})
-    if info["diverged"]:
-        log.warning("blackbox_gp %s deg: diverged at t = %.4g s (node %s); frozen afterwards", angle,
-                    info["t_diverged"], info["node_diverged"])
 
 
 __all__ = ["FEATURES", "TARGETS", "SimulationDiverged", "fit_blackbox", "node_features", "rollout",

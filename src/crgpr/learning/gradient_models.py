@@ -1,4 +1,4 @@
-"""Stage 2: the gradient GPs of Table II (paper Sec. III-B step 3) and the objective variant.
+"""Step 3: the gradient GPs of Table II (paper Sec. III-B step 3) and the objective variant.
 
 One rule per model writes ``results/models/{prefilter}/{model}.npz`` + ``.json``:
 
@@ -28,20 +28,17 @@ against the exact posterior mean is measured here and stored in the model's JSON
 
 from __future__ import annotations
 
-import argparse
 import logging
-import math
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import scipy.linalg as sla
 
-from crgpr.config import ConfigError, load_config, rod_params
+from crgpr.config import ConfigError, rod_params
 from crgpr.gp import GP, basis_matrix_std, fit_gp, kernel_matrix
-from crgpr.io import load_npz, write_csv
+from crgpr.io import load_npz
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
 from crgpr.physics.params import RodParams
@@ -53,21 +50,6 @@ OBJECTIVE_MODELS: tuple[str, ...] = ("obj_n1", "obj_n2", "obj_m")
 ALL_MODELS = PAPER_MODELS + OBJECTIVE_MODELS
 MOMENTUM_MODELS = ("dH_dp_x", "dH_dp_y", "dH_dp_theta")
 
-# Paper Table II, for table2_hyperparameters.csv
-PAPER_TABLE2: dict[str, dict[str, Any]] = {
-    "q_x": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 2.28, "ell": "[3.22, 2.47, 181]",
-            "sigma_n": 3.4e-2, "n": 7910},
-    "q_y": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 1.66, "ell": "[3.11, 1.84, 131]",
-            "sigma_n": 3.4e-2, "n": 8652},
-    "dH_dtheta": {"kernel": "ARD-SE", "basis": "Constant", "sigma_f": 1.14,
-                  "ell": "[0.97, 1.86, 21.7, 4.28, 2.04, 51.1]", "sigma_n": 1.8e-3, "n": 18975},
-    "dH_dp_x": {"kernel": "SE", "basis": "None", "sigma_f": 134.7, "ell": "61.8", "sigma_n": 9.3e-3,
-                "n": 966},
-    "dH_dp_y": {"kernel": "SE", "basis": "None", "sigma_f": 698.3, "ell": "391.1", "sigma_n": 1.1e-2,
-                "n": 966},
-    "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
-                    "n": 980},
-}
 FEATURE_NAMES: dict[str, tuple[str, ...]] = {
     "q_x": ft.PAPER_Q_FEATURES, "q_y": ft.PAPER_Q_FEATURES, "dH_dtheta": ft.PAPER_THETA_FEATURES,
     "dH_dp_x": ("p_x",), "dH_dp_y": ("p_y",), "dH_dp_theta": ("p_theta",),
@@ -285,49 +267,3 @@ def load_model_arrays(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str
     if not js.exists():
         raise FileNotFoundError(f"{js}: gradient model file missing")
     return load_npz(stem.with_suffix(".npz")), json.loads(js.read_text())
-
-
-def table2(model_jsons: list[str | Path], out: str | Path) -> pd.DataFrame:
-    """Table II: our hyperparameters (output/input units) beside the paper's."""
-    import json
-
-    rows = []
-    for p in model_jsons:
-        meta = json.loads(Path(p).read_text())
-        name = meta["name"]
-        paper = PAPER_TABLE2.get(name, {})
-        rows.append({
-            "model": name, "prefilter": meta.get("prefilter"),
-            "kernel": ("ARD-" if meta["ard"] else "") + meta["kernel"].upper(), "basis": meta["basis"],
-            "features": " ".join(meta["features"]),
-            "sigma_f": meta["sigma_f"],
-            "lengthscales": "[" + ", ".join(f"{v:.4g}" for v in meta["lengthscales"]) + "]",
-            "sigma_n": meta["sigma_n"],
-            "sigma_n_lower_bound": meta["info"].get("sigma_n_lower_std", math.nan) * meta["y_scale"][0],
-            "n": meta["n"], "n_hyper": meta["hyper_subset"],
-            "approx_rmse_over_target_std": meta["approx_error_vs_exact"]["rmse_over_target_std"],
-            "paper_kernel": paper.get("kernel", ""), "paper_basis": paper.get("basis", ""),
-            "paper_sigma_f": paper.get("sigma_f", math.nan), "paper_lengthscales": paper.get("ell", ""),
-            "paper_sigma_n": paper.get("sigma_n", math.nan), "paper_n": paper.get("n", math.nan),
-        })
-    df = pd.DataFrame(rows)
-    write_csv(df, out)
-    return df
-
-
-def rule(cfg: dict[str, Any], model: str, prefilter_method: str, prefiltered: str, out_npz: str) -> None:
-    """Snakemake entry point of rule ``gradient_model``."""
-    train_model(cfg, model, prefiltered, Path(out_npz).with_suffix(""), prefilter_method)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("train-gradient-model", help="stage 2: fit one gradient GP of Table II",
-                       description="Fit one gradient GP (targets H_z of eq. "
-                                   "(estimated_variational_derivative)) from a prefilter Parquet file.")
-    p.add_argument("--model", choices=ALL_MODELS, required=True)
-    p.add_argument("--prefiltered", required=True, help="prefilter Parquet file (stage 1)")
-    p.add_argument("--prefilter-method", default="gp", choices=("gp", "fd"))
-    p.add_argument("--out", required=True, help="output stem: writes STEM.npz and STEM.json")
-    p.add_argument("--config", default="config.yaml")
-    p.set_defaults(func=lambda a: train_model(load_config(a.config), a.model, a.prefiltered, a.out,
-                                              a.prefilter_method))

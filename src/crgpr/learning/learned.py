@@ -1,4 +1,4 @@
-"""Stage 3: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (nonpde)).
+"""Step 4: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (17)).
 
     dz/dt = (J - R) H_z_hat(z) + G u
 
@@ -24,7 +24,6 @@ far the learned force field is from a gradient field plus the time discretisatio
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import time
@@ -36,7 +35,7 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from crgpr.config import ConfigError, load_config, rod_params, sim_settings
+from crgpr.config import ConfigError, rod_params, sim_settings
 from crgpr.io import write_json, write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, load_model_arrays
@@ -173,7 +172,7 @@ class LearnedRod:
     @classmethod
     def from_dir(cls, model_dir: str | Path, features: str, params: RodParams,
                  momentum_dir: str | Path | None = None) -> LearnedRod:
-        """The rollout approximations of the models saved in ``model_dir`` (stage 2 output)."""
+        """The rollout approximations of the models saved in ``model_dir`` (step 3 output)."""
         model_dir = Path(model_dir)
         momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
         names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
@@ -308,21 +307,3 @@ def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str |
     if energy_out is not None:
         write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
     return traj
-
-
-def rule(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str, model_json: str) -> None:
-    """Snakemake entry point of rule ``rollout``."""
-    run_rollout(cfg, method, float(angle), Path(model_json).parent, out, energy_out)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("rollout", help="stage 3: simulate a learned CR-GPR model",
-                       description="Integrate dz/dt = (J - R) H_z_hat + G u from the straight rod at rest.")
-    p.add_argument("--method", required=True, help="a key of rollouts.methods (cr_gpr, ...)")
-    p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
-    p.add_argument("--models", required=True, help="directory of the method's model files")
-    p.add_argument("--out", required=True)
-    p.add_argument("--energy-out")
-    p.add_argument("--config", default="config.yaml")
-    p.set_defaults(func=lambda a: run_rollout(load_config(a.config), a.method, a.theta0, a.models, a.out,
-                                              a.energy_out))

@@ -1,4 +1,4 @@
-"""Stage 1: prefilter, the derivative data set E of eq. (derivative_dataset) (paper Sec. III-B, step 2).
+"""Step 2: prefilter, the derivative data set E of eq. (12) (paper Sec. III-B, step 2).
 
 Two methods write the same schema to ``results/prefilter/{method}/{angle}.parquet``:
 
@@ -30,7 +30,6 @@ non-uniformly sampled time series (used by the camera-data / missing-physics wor
 
 from __future__ import annotations
 
-import argparse
 import logging
 import time
 from dataclasses import dataclass
@@ -40,11 +39,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.config import ConfigError, load_config, rod_params
+from crgpr.config import ConfigError
 from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
-from crgpr.io import read_parquet, write_parquet
+from crgpr.io import read_parquet
 from crgpr.physics.rod import STATE_NAMES
-from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory, trajectory_from_frame
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory
 
 log = logging.getLogger(__name__)
 
@@ -229,34 +228,3 @@ def prefiltered_arrays(df: pd.DataFrame) -> dict[str, np.ndarray]:
            if c not in ("theta0_deg", "t", "node")}
     out["t"] = t
     return out
-
-
-def rule(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -> None:
-    """Snakemake entry point of rule ``prefilter``."""
-    params = rod_params(cfg)
-    settings = PrefilterSettings.from_config(cfg)
-    traj = trajectory_from_frame(read_parquet(gt, required=TRAJECTORY_COLUMNS), params)
-    seed = int(cfg["seed"]) + 1000 + int(angle)
-    t0 = time.perf_counter()
-    df, meta = prefilter(traj, method, settings, seed)
-    meta.update({"kind": "prefilter", "theta0_deg": angle, "source": str(gt), "seed": seed,
-                 "seconds": time.perf_counter() - t0, "rod": params.to_dict()})
-    write_parquet(df, out, meta)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("prefilter", help="stage 1: smooth a trajectory and estimate its derivatives",
-                       description="Write the derivative data set E (eq. derivative_dataset) of a "
-                                   "ground-truth trajectory Parquet file.")
-    p.add_argument("--method", choices=METHODS, default="gp")
-    p.add_argument("--trajectory", required=True, help="ground-truth trajectory Parquet file")
-    p.add_argument("--out", required=True, help="Parquet file to write")
-    p.add_argument("--config", default="config.yaml", help="config.yaml (sections rod, prefilter, seed)")
-    p.set_defaults(func=_cli)
-
-
-def _cli(args: argparse.Namespace) -> None:
-    cfg = load_config(args.config)
-    df = read_parquet(args.trajectory, required=TRAJECTORY_COLUMNS)
-    angle = int(round(float(df["theta0_deg"].iloc[0])))
-    rule(cfg, args.method, angle, args.trajectory, args.out)
