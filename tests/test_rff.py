@@ -18,7 +18,7 @@ from crgpr.gp.sampling import (
     exact_posterior,
     pathwise_covariance,
     pathwise_samples,
-    pivoted_cholesky_inducing,
+    inducing_indices,
     posterior_from_gp,
     sparse_posterior,
     weight_space_samples,
@@ -117,7 +117,7 @@ def test_compression_converges_and_roundtrips(tmp_path) -> None:
     smp = pathwise_samples(post, 5, 300, np.random.default_rng(4))
     errs = []
     for M in (10, 40, 120):
-        comp = compress(smp, pivoted_cholesky_inducing(spec, M))
+        comp = compress(smp, inducing_indices(spec, M, 0))
         errs.append(compression_error(smp, comp, xt)["max_rel_sd"])
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 1e-2
@@ -160,7 +160,7 @@ def test_sparse_pathwise_samples(basis: str) -> None:
     np.testing.assert_allclose(v_all, var, rtol=1e-4)
     errs = []
     for M in (10, 30, 60):
-        sp = sparse_posterior(spec, spec.Xs[pivoted_cholesky_inducing(spec, M)])
+        sp = sparse_posterior(spec, spec.Xs[inducing_indices(spec, M, 0)])
         m_s, v_s = sp.mean_var(xt)
         errs.append(np.abs(m_s - mean).max() / np.sqrt(var).max())
     assert errs[0] > errs[1] > errs[2]

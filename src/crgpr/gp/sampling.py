@@ -63,7 +63,9 @@ import numpy as np
 import scipy.linalg as sla
 from numba import njit
 
-from crgpr.gp import GP, basis_matrix_std, kernel_matrix
+from crgpr.gp._gpr import GP, basis_matrix_std, kernel_matrix
+from crgpr.gp.evaluators import _SE_POLY, kernel_sum_fast
+from crgpr.gp.sparse import select_inducing
 
 log = logging.getLogger(__name__)
 
@@ -324,40 +326,6 @@ def _cos_poly(t):
 
 
 @njit(cache=True, fastmath=True)
-def _exp_neg_half(r2):
-    """exp(-r2 / 2) for r2 >= 0: r2 clipped at 80 (exp(-40) = 4e-18, i.e. 0 for a kernel),
-    exp(u / 64)^64 with a degree-12 Taylor polynomial (relative error < 1e-10): vectorisable."""
-    u = -0.5 * min(r2, 80.0) * 0.015625
-    p = 1.0
-    for k in range(12, 0, -1):
-        p = 1.0 + u / k * p
-    for _ in range(6):
-        p = p * p
-    return p
-
-
-@njit(cache=True, fastmath=True)
-def _kernel_sum(xl, ZlT, a, sf2, out):
-    """out[s, i] += sf2 sum_m a[s, m] exp(-|xl[s, i] - Zl[m]|^2 / 2) (lengthscale-scaled inputs;
-    ZlT (d, M) transposed so that the inner loops run over contiguous inducing points)."""
-    S, m, d = xl.shape
-    M = ZlT.shape[1]
-    r2 = np.empty(M)
-    for s in range(S):
-        for i in range(m):
-            r2[:] = 0.0
-            for k in range(d):
-                xk = xl[s, i, k]
-                for j in range(M):
-                    dd = xk - ZlT[k, j]
-                    r2[j] += dd * dd
-            acc = 0.0
-            for j in range(M):
-                acc += a[s, j] * _exp_neg_half(r2[j])
-            out[s, i] += sf2 * acc
-
-
-@njit(cache=True, fastmath=True)
 def _rff_sum_t(xs, omegaT, phase, w, scale, out):
     """out[s, i] = scale sum_j w[s, j] cos(omega_s,j . xs[s, i] + phase[s, j]), omegaT (S, d, D)."""
     S, m, d = xs.shape
@@ -483,27 +451,10 @@ def weight_space_samples(spec: GPSpec, n_samples: int, n_features: int,
 # compression of the update term for the rollout
 
 
-def pivoted_cholesky_inducing(spec: GPSpec, n_inducing: int, tol: float = 1e-10) -> np.ndarray:
-    """Indices of M training inputs chosen by greedy pivoted Cholesky of K_XX (largest
-    remaining conditional variance first); stops early when the residual trace < tol sigma_f^2."""
-    Xs = spec.Xs
-    n = Xs.shape[0]
-    m = min(n_inducing, n)
-    diag = np.full(n, spec.sigma_f**2)
-    L = np.zeros((m, n))
-    piv: list[int] = []
-    for j in range(m):
-        i = int(np.argmax(diag))
-        if diag[i] <= tol * spec.sigma_f**2:
-            break
-        piv.append(i)
-        row = se_kernel(Xs[i:i + 1], Xs, spec.sigma_f, spec.lengthscales)[0]
-        row -= L[:j, i] @ L[:j]
-        row /= math.sqrt(diag[i])
-        L[j] = row
-        diag -= row**2
-        diag[i] = 0.0
-    return np.array(piv, dtype=int)
+def inducing_indices(spec: GPSpec, n_inducing: int, seed: int) -> np.ndarray:
+    """Indices of M training inputs for the inducing set: ``crgpr.gp.select_inducing``
+    (farthest points in lengthscale-scaled inputs, the selector of the rollout's DTC mean)."""
+    return select_inducing(spec.Xs / spec.lengthscales, n_inducing, seed)
 
 
 @dataclass
@@ -568,7 +519,8 @@ class CompressedSamples:
         S, m, d = xs.shape
         out = np.empty((S, m))
         _rff_sum_t(xs, self._omegaT, self.phase, self.w, self._scale, out)
-        _kernel_sum(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2, out)
+        kernel_sum_fast(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2,
+                        _SE_POLY, out)
         if self.beta.shape[1]:
             H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
             out += np.einsum("smp,sp->sm", H, self.beta)

@@ -57,7 +57,7 @@ from crgpr.gp.sampling import (
     GPSpec,
     exact_posterior,
     pathwise_samples,
-    pivoted_cholesky_inducing,
+    inducing_indices,
     sparse_posterior,
 )
 from crgpr.gp.sampling import compress as compress_samples
@@ -232,7 +232,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
 
     Inducing inputs: ``Z`` (standardised) if given, i.e. the rollout's own DTC inducing set, so
     that the samples are centred on exactly the mean model the CR-GPR rollout integrates; else
-    M = uq.inducing by pivoted Cholesky. Diagnostics: the sampler's mean and sd against the
+    M = uq.inducing by crgpr.gp.select_inducing. Diagnostics: the sampler's mean and sd against the
     exact GP posterior at ``check_points`` training inputs; for n > exact_check_max_n both are
     conditioned on a random subset of exact_check_max_n points (as gradient_models.py does).
 
@@ -246,8 +246,8 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
     t0 = time.perf_counter()
     n = spec.Xs.shape[0]
     if Z is None:
-        idx = pivoted_cholesky_inducing(spec, settings.inducing)
-        Z, z_src = spec.Xs[idx], "pivoted Cholesky of K_XX"
+        idx = inducing_indices(spec, settings.inducing, seed)
+        Z, z_src = spec.Xs[idx], "farthest points (crgpr.gp.select_inducing)"
     else:
         idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
     info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
@@ -439,7 +439,7 @@ def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_resta
     dropped, and the remaining batch is integrated again from t = 0 (never silently kept).
     Returns t (n_t,), q and p (S', n_t, N+1, 3) of the surviving samples, their indices, and
     the divergence records."""
-    from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged, run_hamiltonian
+    from crgpr.physics.integrator import REACH, SimulationDiverged, diverged_nodes, run_hamiltonian
 
     P = rod.params
     q0 = straight_rod(np.radians(theta0_deg), P)
@@ -469,12 +469,11 @@ def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_resta
             out = run_hamiltonian(qb, np.zeros_like(qb), force, velocity, np.tile(free, (S, 1)), P.zeta,
                                   settings.dt, settings.n_steps, settings.record_every, np.tile(wds, S),
                                   what=f"UQ rollout at theta0 = {theta0_deg:g} deg",
-                                  velocity_slope=velocity_slope)
+                                  velocity_slope=velocity_slope, length=P.L0)
         except SimulationDiverged as exc:
             q, p = rod.last_q, rod.last_p
             v = rod.velocity(p) if p is not None else np.full_like(q, np.nan)
-            bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(v).all(axis=(1, 2))
-                    & (np.abs(v) < MAX_SPEED).all(axis=(1, 2)) & (np.abs(q) < 1.0e6).all(axis=(1, 2)))
+            bad = diverged_nodes(q, v, q0[0, :2], REACH * P.L0).any(axis=1)  # the integrator's policy
             if not bad.any():
                 raise
             for j in np.nonzero(bad)[0]:
