@@ -27,10 +27,10 @@ one evaluation of each GP per step (the momentum rate is reused for the next hal
 clamped base node held fixed.
 
 Divergence: the integrator's one policy (non-finite state, |dq/dt| >= ``integrator.MAX_SPEED``,
-a node farther than ``integrator.REACH`` L0 from the base). The rollout file then holds the trajectory up to the last plausible
-record and that state frozen afterwards (scored like that by the metrics, a bounded and
-conservative error), with ``diverged``, ``t_diverged`` and ``node_diverged`` in its Parquet
-metadata; the baselines table reports the count.
+a node farther than ``integrator.REACH`` L0 from the base). The rollout file then holds the
+trajectory up to the last plausible record and that state frozen afterwards (scored like that
+by the metrics, a bounded and conservative error), with ``diverged``, ``t_diverged`` and
+``node_diverged`` in its Parquet metadata; the baselines table reports the count.
 """
 
 from __future__ import annotations
@@ -47,13 +47,14 @@ import pandas as pd
 
 from crgpr.config import ConfigError, rod_params, sim_settings
 from crgpr.gp import GP, KernelMean, fit_gp
-from crgpr.io import read_parquet, write_json, write_parquet
+from crgpr.io import frame_to_grid, read_parquet, write_json, write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import D1_COLUMNS, PREFILTER_COLUMNS
 from crgpr.physics.integrator import SimulationDiverged, run_verlet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import STATE_NAMES, straight_rod
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -75,26 +76,21 @@ def node_features(q: np.ndarray, p: np.ndarray, ds: float, center: float | None)
     return np.concatenate([geo, p[..., 1:, :]], axis=-1)
 
 
-def theta_center(cfg: dict[str, Any], theta: np.ndarray) -> float | None:
-    """CR-GPR's angle window centre (middle of the training range of theta), if wrapping is on."""
-    wrap = bool(cfg.get("gradient_models", {}).get("theta_wrap", False))
-    th = theta[:, 1:]
-    return 0.5 * (float(th.min()) + float(th.max())) if wrap else None
-
-
-def training_set(prefiltered: pd.DataFrame, params: RodParams, cfg: dict[str, Any] | None = None
+def training_set(prefiltered: pd.DataFrame, params: RodParams, theta_wrap: bool
                  ) -> tuple[np.ndarray, np.ndarray, float | None]:
-    """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; angle centre."""
-    df = prefiltered.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if n_nodes != params.N + 1 or len(df) != t.size * n_nodes:
-        raise ConfigError(f"prefilter table has {n_nodes} nodes / {len(df)} rows; expected a full grid "
-                          f"with rod.N + 1 = {params.N + 1} nodes")
-    arr = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in (*STATE_NAMES, *TARGETS)}
+    """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; the angle
+    window centre (``features.theta_center``, None unless ``theta_wrap``)."""
+    cols = (*STATE_NAMES, *TARGETS)
+    try:
+        _, g = frame_to_grid(prefiltered, cols, "prefilter table")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from exc
+    if g.shape[1] != params.N + 1:
+        raise ConfigError(f"prefilter table has {g.shape[1]} nodes; expected rod.N + 1 = {params.N + 1}")
+    arr = {c: np.ascontiguousarray(g[..., k]) for k, c in enumerate(cols)}
     q = np.stack([arr["x"], arr["y"], arr["theta"]], -1)
     p = np.stack([arr["p_x"], arr["p_y"], arr["p_theta"]], -1)
-    center = theta_center(cfg or {}, arr["theta"])
+    center = ft.theta_center(arr["theta"]) if theta_wrap else None
     F = node_features(q, p, params.ds, center).reshape(-1, len(FEATURES))
     Y = np.stack([arr[c] for c in TARGETS], -1)[:, 1:].reshape(-1, 6)
     return F, Y, center
@@ -168,8 +164,8 @@ def rule_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary: str
     params = rod_params(cfg)
     st = blackbox_settings(cfg)
     df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
-    F, Y, center = training_set(df, params, cfg)
-    seed = int(cfg["seed"]) + 4000
+    F, Y, center = training_set(df, params, bool(cfg["gradient_models"]["theta_wrap"]))
+    seed = stage_seed(cfg["seed"], "blackbox")
     t0 = time.perf_counter()
     gps = fit_blackbox(F, Y, st, seed)
     out = Path(out_dir)

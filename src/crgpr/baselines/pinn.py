@@ -63,11 +63,13 @@ from torch import nn
 from crgpr.config import ConfigError, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.seeds import pinn_seed
 
 log = logging.getLogger(__name__)
 
-STATE = ("x", "y", "theta", "p_x", "p_y", "p_theta")
+STATE = STATE_NAMES
 VARIANTS: dict[str, str] = {
     "pinn_physics": "physics only, no data",
     "pinn_data_1": "data-assisted, N_init = 1 (angles.train_deg)",
@@ -301,7 +303,7 @@ def variant_angles(cfg: dict[str, Any], variant: str) -> list[int]:
 
 def variant_seed(cfg: dict[str, Any], variant: str) -> int:
     """Seed of one variant, derived from the global seed and the variant name."""
-    return (int(cfg["seed"]) * 1000003 + sum(map(ord, variant)) * 7919) % (2**31 - 1)
+    return pinn_seed(cfg["seed"], variant)
 
 
 def load_training_data(paths: dict[int, str], sc: Scales) -> tuple[np.ndarray, np.ndarray]:

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from crgpr.gp._gpr import GP, GPError, basis_matrix_std
+from crgpr.gp._gpr import GP, GPError
 
 BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
 KERNEL_ID = {"se": 0, "matern52": 1}

@@ -39,11 +39,13 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import ConfigError, load_config, rod_params
-from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp, load_model
+from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp
 from crgpr.io import write_csv
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -86,12 +88,6 @@ def model_spec(cfg: dict[str, Any], name: str) -> dict[str, Any]:
     raise ConfigError(f"unknown gradient model {name!r}; expected one of {ALL_MODELS}")
 
 
-def theta_center(arr: dict[str, np.ndarray]) -> float:
-    """Centre of the training range of theta over the free nodes (for the 2 pi window)."""
-    th = arr["theta"][:, 1:]
-    return 0.5 * (float(th.min()) + float(th.max()))
-
-
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
                   center: float | None) -> tuple[np.ndarray, np.ndarray]:
     """All (X, y) samples of one model from the prefilter arrays (before subsampling)."""
@@ -106,7 +102,7 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         tgt = hz[:, 1:, 2]
     elif name in MOMENTUM_MODELS:
         k = MOMENTUM_MODELS.index(name)
-        X = np.stack([arr[("p_x", "p_y", "p_theta")[k]]], axis=-1)[:, 1:]
+        X = np.stack([arr[STATE_NAMES[3 + k]]], axis=-1)[:, 1:]
         tgt = hz[:, 1:, 3 + k]
     elif name in OBJECTIVE_MODELS:
         sg = ft.segments(x, y, th, ds)
@@ -215,11 +211,11 @@ def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_ste
     arr = prefiltered_arrays(read_prefiltered(prefiltered))
     if arr["x"].shape[1] != params.N + 1:
         raise ValueError(f"{prefiltered}: {arr['x'].shape[1]} nodes but config rod.N = {params.N}")
-    center = theta_center(arr) if gm["theta_wrap"] else None
+    center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
     X, y = training_data(arr, params, name, center)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError(f"{prefiltered}: non-finite features or targets for model {name}")
-    seed = int(cfg["seed"]) + 2000 + ALL_MODELS.index(name)
+    seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
     extra = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
              "prefilter": prefilter_method, "source": str(prefiltered), "seed": seed, **report,

@@ -36,9 +36,9 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import ConfigError, load_config, rod_params, sim_settings
+from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_json, write_parquet
 from crgpr.learning import features as ft
-from crgpr.gp.evaluators import load_evaluator
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings

@@ -42,9 +42,10 @@ import pandas as pd
 
 from crgpr.config import ConfigError, load_config, rod_params
 from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
-from crgpr.io import read_parquet, write_parquet
+from crgpr.io import frame_to_grid, read_parquet, write_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory, trajectory_from_frame
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -219,14 +220,9 @@ def read_prefiltered(path: str | Path) -> pd.DataFrame:
 
 def prefiltered_arrays(df: pd.DataFrame) -> dict[str, np.ndarray]:
     """Arrays (n_t, N+1) per column of a prefilter table, plus 't' (n_t,)."""
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"prefilter table is not a full (t, node) grid: {len(df)} rows, "
-                         f"{t.size} times x {n_nodes} nodes")
-    out = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in PREFILTER_COLUMNS
-           if c not in ("theta0_deg", "t", "node")}
+    cols = [c for c in PREFILTER_COLUMNS if c not in ("theta0_deg", "t", "node")]
+    t, g = frame_to_grid(df, cols, "prefilter table")
+    out = {c: np.ascontiguousarray(g[..., k]) for k, c in enumerate(cols)}
     out["t"] = t
     return out
 
@@ -236,7 +232,7 @@ def rule(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -> Non
     params = rod_params(cfg)
     settings = PrefilterSettings.from_config(cfg)
     traj = trajectory_from_frame(read_parquet(gt, required=TRAJECTORY_COLUMNS), params)
-    seed = int(cfg["seed"]) + 1000 + int(angle)
+    seed = stage_seed(cfg["seed"], "prefilter", int(angle))
     t0 = time.perf_counter()
     df, meta = prefilter(traj, method, settings, seed)
     meta.update({"kind": "prefilter", "theta0_deg": angle, "source": str(gt), "seed": seed,

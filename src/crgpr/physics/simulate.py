@@ -12,13 +12,20 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from crgpr.io import frame_to_grid
 from crgpr.physics.integrator import Integration, run_rod
 from crgpr.physics.params import RodParams, SimSettings
-from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
-
-TRAJECTORY_COLUMNS: tuple[str, ...] = (
-    "theta0_deg", "t", "node", "s", "x", "y", "theta", "p_x", "p_y", "p_theta",
+from crgpr.physics.rod import (
+    STATE_NAMES,
+    free_mask,
+    internal_forces,
+    masses,
+    node_weights,
+    segment_EI,
+    straight_rod,
 )
+
+TRAJECTORY_COLUMNS: tuple[str, ...] = ("theta0_deg", "t", "node", "s", *STATE_NAMES)
 ENERGY_COLUMNS: tuple[str, ...] = ("t", "H", "dissipation_rate", "dissipated")
 
 
@@ -147,9 +154,6 @@ def energy_frame(traj: Trajectory) -> pd.DataFrame:
 
 def trajectory_from_frame(df: pd.DataFrame, params: RodParams) -> Trajectory:
     """Inverse of ``trajectory_frame`` (rows sorted by t, node)."""
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    z = df[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy().reshape(len(t), n_nodes, 6)
+    t, z = frame_to_grid(df, STATE_NAMES, "trajectory")
     theta0 = float(df["theta0_deg"].iloc[0]) if "theta0_deg" in df else float("nan")
     return Trajectory(theta0, t, z[..., :3].copy(), z[..., 3:].copy(), params)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+from crgpr.io import frame_to_grid, read_metadata, read_parquet, write_csv, write_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
@@ -40,12 +40,7 @@ PAPER_TABLE4 = {"two-step (GP dz/dt)": {"rmse_theta": 0.2218, "tip_rmse_over_L":
 
 
 def _grid(df: pd.DataFrame, path: str) -> tuple[np.ndarray, np.ndarray]:
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"{path}: not a full (t, node) grid ({len(df)} rows, {t.size} x {n_nodes})")
-    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n_nodes, 6)
+    return frame_to_grid(df, STATE_NAMES, path)
 
 
 def accuracy(gt: pd.DataFrame, pred: pd.DataFrame, L0: float, gt_name: str = "ground truth",

@@ -56,8 +56,8 @@ from crgpr.gp.sampling import (
     CompressedSamples,
     GPSpec,
     exact_posterior,
-    pathwise_samples,
     inducing_indices,
+    pathwise_samples,
     sparse_posterior,
 )
 from crgpr.gp.sampling import compress as compress_samples
