@@ -1,4 +1,4 @@
-"""Configuration validation, CLI and Parquet I/O (issue 2: bad input fails clearly)."""
+"""Configuration validation, CLI and Parquet I/O (bad input fails clearly)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PINN baselines (issue 4): physics residual of eq. (ph-compact), constraints, smoke training."""
+"""PINN baselines: physics residual of eq. (9) (Sec. III-A), constraints, smoke training."""
 
 from __future__ import annotations
 

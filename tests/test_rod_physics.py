@@ -1,4 +1,4 @@
-"""Physics specification of the ground-truth rod (issue 2): energy, boundary conditions,
+"""Physics specification of the ground-truth rod: energy, boundary conditions,
 statics against Euler-Bernoulli theory, spatial convergence, determinism, divergence."""
 
 from __future__ import annotations

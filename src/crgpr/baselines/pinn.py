@@ -2,7 +2,7 @@
 
 A fully connected network maps (t, s, theta0) to the full state
 z = [x, y, theta, p_x, p_y, p_theta] of the planar Cosserat rod. It is trained on the
-residual of eq. (ph-compact),
+residual of eq. (9) (Sec. III-A),
 
     dz/dt = (J - R) H_z(z) + G u,        G u = [0, 0, 0, 0, -rho A g, 0],
 
@@ -79,11 +79,11 @@ ACTIVATIONS = ("tanh", "sin")
 
 
 # --------------------------------------------------------------------------------------
-# scales and the physics residual of eq. (ph-compact)
+# scales and the physics residual of eq. (9), Sec. III-A
 # --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scales:
-    """Reference scales and non-dimensional coefficients of eq. (ph-compact)."""
+    """Reference scales and non-dimensional coefficients of eq. (9) (Sec. III-A)."""
 
     L: float  # length scale L0 [m]
     T: float  # time scale sqrt(L0 / g) [s]
@@ -132,7 +132,7 @@ def stress_resultants(z: torch.Tensor, z_s: torch.Tensor, sc: Scales) -> dict[st
 
 def ph_residual(z: torch.Tensor, z_t: torch.Tensor, z_s: torch.Tensor, z_ss: torch.Tensor,
                 sc: Scales) -> torch.Tensor:
-    """Residual dz/dt - (J - R) H_z - G u of eq. (ph-compact), non-dimensional, (..., 6).
+    """Residual dz/dt - (J - R) H_z - G u of eq. (9) (Sec. III-A), non-dimensional, (..., 6).
 
     ``z`` (..., 6) is the non-dimensional state, ``z_t`` its derivative in t / T, ``z_s`` and
     ``z_ss`` (..., >= 3) the first and second derivatives of (x, y, theta) in s / L0. The
@@ -384,7 +384,7 @@ def train_pinn(cfg: dict[str, Any], variant: str, data_paths: dict[int, str],
             loss = loss + w_data * l_dat
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        if ps.get("grad_clip"):
+        if float(ps["grad_clip"]) > 0.0:  # 0 = off (schema)
             nn.utils.clip_grad_norm_(model.parameters(), float(ps["grad_clip"]))
         opt.step()
         sched.step()

@@ -8,7 +8,7 @@ Public API:
   ``Table1D`` (1-D with slope), ``load_evaluator`` (from a saved model), the one compiled
   ``kernel_sum``;
 * sparse means (``sparse``): ``select_inducing``, ``dtc_fit``;
-* ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-C).
+* ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-B, RFF sampling).
 """
 
 from crgpr.gp._gpr import (

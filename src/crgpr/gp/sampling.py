@@ -1,4 +1,4 @@
-"""Posterior function samples of the SE / ARD-SE gradient GPs (paper Sec. III, "Uncertainty
+"""Posterior function samples of the SE / ARD-SE gradient GPs (paper Sec. III-B, "Uncertainty
 Quantification via RFF Sampling").
 
 Model (Rasmussen & Williams 2006, Sec. 2.7): f(x) = h(x)^T beta + g(x), g ~ GP(0, k),

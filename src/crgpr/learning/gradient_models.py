@@ -260,7 +260,7 @@ def rule(cfg: dict[str, Any], model: str, prefilter_method: str, prefiltered: st
 def add_cli(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train-gradient-model", help="stage 2: fit one gradient GP of Table II",
                        description="Fit one gradient GP (targets H_z of eq. "
-                                   "(estimated_variational_derivative)) from a prefilter Parquet file.")
+                                   "(13), Sec. III-B step 3) from a prefilter Parquet file.")
     p.add_argument("--model", choices=ALL_MODELS, required=True)
     p.add_argument("--prefiltered", required=True, help="prefilter Parquet file (stage 1)")
     p.add_argument("--prefilter-method", default="gp", choices=("gp", "fd"))

@@ -1,4 +1,4 @@
-"""Stage 3: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (nonpde)).
+"""Stage 3: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (17)).
 
     dz/dt = (J - R) H_z_hat(z) + G u
 

@@ -1,4 +1,4 @@
-"""Stage 1: prefilter, the derivative data set E of eq. (derivative_dataset) (paper Sec. III-B, step 2).
+"""Stage 1: prefilter, the derivative data set E of eq. (12) (paper Sec. III-B, step 2).
 
 Two methods write the same schema to ``results/prefilter/{method}/{angle}.parquet``:
 
@@ -12,7 +12,7 @@ Two methods write the same schema to ``results/prefilter/{method}/{angle}.parque
         fractions of N) on ``hyper_points`` evenly spaced samples, then shared by all nodes of
         that component (one Cholesky factor serves all 26 nodes). Posterior mean and its
         analytic first and second time derivatives are evaluated on the output grid.
-``fd``  (the ablation, paper Table IV): z itself and central differences in time,
+``fd``  (the ablation, paper Table V): z itself and central differences in time,
         dz/dt = (z_{k+1} - z_{k-1}) / (2 dt), d2z/dt2 = (z_{k+1} - 2 z_k + z_{k-1}) / dt^2, on
         the FULL recorded data (one-sided second-order at the two ends).
 
@@ -60,14 +60,14 @@ PREFILTER_COLUMNS: tuple[str, ...] = (*TRAJECTORY_COLUMNS, *D1_COLUMNS, *D2_COLU
 class PrefilterSettings:
     """Section ``prefilter`` of config.yaml (see its schema for units and ranges)."""
 
-    stride: int = 5  # condition the state GPs on every stride-th recorded sample
-    n_t_out: int = 759  # output time grid N_t'
-    kernel: str = "matern52"
-    basis: str = "quadratic"
-    noise_var_min: float = 1.0e-9  # lower bound on the noise variance (standardised units)
-    hyper_nodes: tuple[float, ...] = (0.33, 0.67, 1.0)  # fractions of N
-    hyper_points: int = 200
-    n_restarts: int = 1
+    stride: int  # condition the state GPs on every stride-th recorded sample
+    n_t_out: int  # output time grid N_t'
+    kernel: str
+    basis: str
+    noise_var_min: float  # lower bound on the noise variance (standardised units)
+    hyper_nodes: tuple[float, ...]  # fractions of N
+    hyper_points: int
+    n_restarts: int
 
     @classmethod
     def from_config(cls, cfg: dict[str, Any]) -> PrefilterSettings:
@@ -126,7 +126,7 @@ def _frame(traj: Trajectory, t: np.ndarray, z: np.ndarray, d1: np.ndarray, d2: n
 
 
 def fd_prefilter(traj: Trajectory, settings: PrefilterSettings) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Central finite differences in time on the full recorded data (ablation, Table IV)."""
+    """Central finite differences in time on the full recorded data (ablation, Table V)."""
     z = traj.z
     t = traj.t
     if len(t) < 3:

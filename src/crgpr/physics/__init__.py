@@ -1,7 +1,7 @@
 """Physics of the planar Cosserat rod (paper Sec. III-A, eqs. (3)-(10); Sec. IV, Table I).
 
 Public API:
-* ``RodParams``, ``SimSettings``: the rod's parameters (Table III) and the time grid;
+* ``RodParams``, ``SimSettings``: the rod's parameters (Table I) and the time grid;
 * ``rod``: the variational discretisation (strains, resultants, ``variational_derivative``);
 * ``integrator``: the Stormer-Verlet scheme with Strang-split dissipation;
 * ``simulate``: ground-truth trajectories (``simulate``, ``Trajectory``, Parquet frames).

@@ -67,8 +67,8 @@ def rod_kernel_args(params: RodParams, theta_base: float) -> tuple:
 
 def simulate(
     theta0_deg: float,
-    params: RodParams | None = None,
-    settings: SimSettings | None = None,
+    params: RodParams,
+    settings: SimSettings,
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
 ) -> Trajectory:
@@ -77,8 +77,6 @@ def simulate(
     ``q0``/``v0`` (N+1, 3) override the initial configuration / velocities (the base node
     stays where ``q0`` puts it). Raises ``SimulationDiverged`` if the run blows up.
     """
-    params = params or RodParams()
-    settings = settings or SimSettings()
     th0 = math.radians(theta0_deg)
     q_init = straight_rod(th0, params) if q0 is None else np.array(q0, dtype=float)
     v_init = np.zeros_like(q_init) if v0 is None else np.array(v0, dtype=float)

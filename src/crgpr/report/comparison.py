@@ -30,7 +30,7 @@ METRICS: tuple[str, ...] = ("rmse_theta", "tip_rmse_over_L", "group_nrmse")
 METRIC_LABELS = {"rmse_theta": r"RMSE($\theta$) [rad]", "tip_rmse_over_L": r"RMSE$_{tip}$/L",
                  "group_nrmse": "Group-nRMSE"}
 
-# Paper Sec. V text and Table IV (two-step CR-GPR row); None where the paper gives no number.
+# Paper Sec. V text and Table V (two-step CR-GPR row); None where the paper gives no number.
 PAPER: dict[str, dict[str, Any]] = {
     "blackbox_gp": {"label": "Black-box GP", "n_init": 1, "rmse_theta": 4.559},
     "pinn_physics": {"label": "PINN (physics only)", "n_init": 0, "rmse_theta": None},
@@ -38,7 +38,7 @@ PAPER: dict[str, dict[str, Any]] = {
     "pinn_data_8": {"label": "PINN", "n_init": 8, "rmse_theta": 0.244},
     "cr_gpr": {"label": "CR-GPR", "n_init": 1, "rmse_theta": 0.222, "tip_rmse_over_L": 0.1278,
                "group_nrmse": 0.0540},
-    # our extension beyond the paper (issue 3): frame-indifferent features; no paper value
+    # our extension beyond the paper: frame-indifferent features; no paper value
     "cr_gpr_objective": {"label": "CR-GPR objective\n(ours, not in paper)", "n_init": 1, "rmse_theta": None},
 }
 ORDER = ("blackbox_gp", "pinn_physics", "pinn_data_1", "pinn_data_8", "cr_gpr", "cr_gpr_objective")

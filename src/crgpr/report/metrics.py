@@ -85,7 +85,7 @@ def accuracy_table(pairs: list[tuple[str, float, str, str]], L0: float) -> pd.Da
 
 
 def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
-    """Table I: RMSE(theta) and R^2 per angle and mean, paper beside ours."""
+    """Table III (file table1_accuracy.csv): RMSE(theta) and R^2 per angle and mean, paper beside ours."""
     sel = acc[acc["method"] == method].set_index("theta0_deg")
     rows = []
     for metric in ("rmse_theta", "r2_theta"):
@@ -103,7 +103,7 @@ def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
 
 
 def table4(acc: pd.DataFrame, methods: list[str]) -> pd.DataFrame:
-    """Table IV: metrics averaged over the test angles per pipeline, paper beside ours."""
+    """Table V (ablation): metrics averaged over the test angles per pipeline, paper beside ours."""
     labels = list(PAPER_TABLE4)
     rows = []
     for i, m in enumerate(methods):
