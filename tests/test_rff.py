@@ -8,10 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crgpr.gp import fit_gp
+from crgpr.gp import GP, fit_gp
 from crgpr.gp.sampling import (
     CompressedSamples,
-    GPSpec,
     compress,
     compression_error,
     draw_rff,
@@ -32,7 +31,7 @@ def _problem(basis: str, ard: bool, seed: int = 0, n: int = 120):
     y = 4.0 * np.sin(1.5 * X[:, 0]) + 0.3 * X[:, 1] ** 2 + 0.1 * rng.standard_normal(n)
     mu, sd = X.mean(0), X.std(0)
     ell = [0.6, 0.9] if ard else [0.7, 0.7]
-    spec = GPSpec((X - mu) / sd, (y - y.mean()) / y.std(), 1.1, ell, 0.05, basis, mu, sd,
+    spec = GP.from_standardised((X - mu) / sd, (y - y.mean()) / y.std(), 1.1, ell, 0.05, basis, mu, sd,
                   float(y.mean()), float(y.std()))
     # test inputs: inside the data, at its edge and outside it (prior reversion)
     xt = np.vstack([X[:3] + 0.05, rng.uniform(-3.0, 3.0, (9, 2)) * [1.0, 3.0] + [0.5, 1.0]])
@@ -193,4 +192,4 @@ def test_compiled_cosine_and_sample_evaluation() -> None:
         comp.beta[s] @ spec.basis_fn(u).T
         + np.sqrt(2.0 * comp.sigma_f**2 / 50) * np.cos(u @ comp.omega[s].T + comp.phase[s]) @ comp.w[s]
         + se_kernel(u, comp.Z, comp.sigma_f, comp.lengthscales) @ comp.a[s] for s in range(2)])
-    np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.y_scale)
+    np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.out_scale)

@@ -52,9 +52,9 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
+from crgpr.gp import GP
 from crgpr.gp.sampling import (
     CompressedSamples,
-    GPSpec,
     exact_posterior,
     inducing_indices,
     pathwise_samples,
@@ -187,8 +187,8 @@ def uq_seed(cfg: dict[str, Any], model_index: int) -> int:
 # stage 1: samples of every gradient GP
 
 
-def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None, np.ndarray | None]:
-    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GPSpec without the
+def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np.ndarray | None]:
+    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GP without the
     O(n^3) factorisation ``GP.load`` performs; also return the standardised inducing inputs
     ``dtc_Z`` of the rollout's DTC mean and the 1D table grid ``table_x`` (gradient_models.py)
     when the file has them."""
@@ -210,9 +210,10 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None
     y_mean = float(np.ravel(arr["y_mean"])[0])
     y_scale = float(np.ravel(arr["y_scale"])[0])
     x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
-    spec = GPSpec((X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
-                  np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)),
-                  float(meta["sigma_n_std"]), str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+    spec = GP.from_standardised(
+        (X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
+        np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)), float(meta["sigma_n_std"]),
+        str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
     Z = arr.get("dtc_Z")
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")
@@ -220,12 +221,12 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
-def _subset(spec: GPSpec, idx: np.ndarray) -> GPSpec:
-    return GPSpec(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.lengthscales, spec.sigma_n, spec.basis,
-                  spec.x_mean, spec.x_std, spec.y_mean, spec.y_scale, spec.name)
+def _subset(spec: GP, idx: np.ndarray) -> GP:
+    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
 
 
-def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
+def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
                        grid: np.ndarray | None = None
                        ) -> tuple[CompressedSamples | TabulatedSamples, dict[str, Any]]:
     """S compressed joint samples of one GP plus diagnostics.
@@ -280,7 +281,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
 
         xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
                                                              replace=False)]
-        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.lengthscales) @ np.ravel(ra["dtc_w"])
+        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.ell) @ np.ravel(ra["dtc_w"])
                                 + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
         m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
         info["sparse_mean_vs_rollout_mean_max_over_sd"] = float(
@@ -315,7 +316,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
             info["compression_err_max_over_sd"] = float(np.abs(err).max())
             info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
         info["exact_sd_median"] = float(np.median(sd_ex))
-        info["sigma_n"] = spec.sigma_n * spec.y_scale
+        info["sigma_n"] = spec.sigma_n * spec.out_scale
     else:
         info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
     info["seconds"] = time.perf_counter() - t0
@@ -323,7 +324,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
     return comp, info
 
 
-def _tabulated_samples(spec: GPSpec, settings: UQSettings, seed: int, grid: np.ndarray
+def _tabulated_samples(spec: GP, settings: UQSettings, seed: int, grid: np.ndarray
                        ) -> tuple[TabulatedSamples, dict[str, Any]]:
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -341,7 +342,7 @@ def _tabulated_samples(spec: GPSpec, settings: UQSettings, seed: int, grid: np.n
             "exact_check": "interpolation error of the tabulated samples vs the exact samples",
             "interp_err_max_over_sd": float(np.abs(err).max()),
             "interp_err_rms_over_sd": float(np.sqrt(np.mean(err**2))),
-            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.y_scale,
+            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.out_scale,
             "seconds": time.perf_counter() - t0}
     log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
     return tab, info
@@ -793,7 +794,7 @@ def function_calibration(cfg: dict[str, Any], model_stems: dict[str, str], gt_pa
                 from crgpr.gp.sampling import se_kernel
 
                 xs = spec.standardise(X)
-                mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.lengthscales)
+                mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.ell)
                                       @ np.ravel(ra["dtc_w"]) + spec.basis_fn(xs) @ np.ravel(ra["dtc_beta"]))
             sd = np.sqrt(np.maximum(var, 1e-300))
             z = (truth[m].reshape(-1) - mean) / sd
