@@ -40,7 +40,7 @@ KERNEL_ID = {"se": 0, "matern52": 1}
 _SE_POLY = 2  # kernel id of the SE kernel with the polynomial exp (kernel_sum_fast only)
 
 
-@njit(inline="always")
+@njit(cache=True, fastmath=True)
 def _exp_neg_half(r2):
     """exp(-r2 / 2) for r2 >= 0: r2 clipped at 80 (exp(-40) = 4e-18, i.e. 0 for a kernel),
     exp(u / 64)^64 with a degree-12 Taylor polynomial (relative error < 1e-10): vectorisable."""
@@ -53,7 +53,8 @@ def _exp_neg_half(r2):
     return p
 
 
-def _kernel_sum_impl(xl, ZlT, a, sf2, kernel_id, out):
+@njit(inline="always")
+def _kernel_sum_body(xl, ZlT, a, sf2, kernel_id, out):
     """out[s, i] += sf2 sum_m a[s, m] k(xl[s, i], Zl[m]), inputs divided by the lengthscales.
 
     ``xl`` (S, m, d), ``ZlT`` (d, M) (transposed: the inner loops run over contiguous
@@ -85,8 +86,16 @@ def _kernel_sum_impl(xl, ZlT, a, sf2, kernel_id, out):
             out[s, i] += sf2 * acc
 
 
-kernel_sum = njit(cache=True)(_kernel_sum_impl)
-kernel_sum_fast = njit(cache=True, fastmath=True)(_kernel_sum_impl)
+@njit(cache=True)
+def kernel_sum(xl, ZlT, a, sf2, kernel_id, out):
+    """The kernel sum in IEEE arithmetic (the posterior means)."""
+    _kernel_sum_body(xl, ZlT, a, sf2, kernel_id, out)
+
+
+@njit(cache=True, fastmath=True)
+def kernel_sum_fast(xl, ZlT, a, sf2, kernel_id, out):
+    """The same kernel sum compiled with fastmath (vectorised; the posterior samples)."""
+    _kernel_sum_body(xl, ZlT, a, sf2, kernel_id, out)
 
 
 @njit(cache=True)
@@ -104,6 +113,23 @@ def _add_basis(u, beta, basis_id, out):
             for k in range(d):
                 acc += beta[1 + d + k] * u[i, k] * u[i, k]
         out[i] = acc
+
+
+@njit(cache=True)
+def _kernel_mean(X, x_mean, x_scale, ell, ZlT, a, sf2, beta, basis_id, kernel_id, y_mean, y_scale, out):
+    """out[i] = y_mean + y_scale (kernel_sum at u_i / ell + h(u_i)^T beta), u = (x - x_mean) / x_scale."""
+    n, d = X.shape
+    U = np.empty((n, d))
+    Ul = np.empty((1, n, d))
+    for i in range(n):
+        for k in range(d):
+            U[i, k] = (X[i, k] - x_mean[k]) / x_scale[k]
+            Ul[0, i, k] = U[i, k] / ell[k]
+    acc = np.zeros((1, n))
+    kernel_sum(Ul, ZlT, a, sf2, kernel_id, acc)
+    _add_basis(U, beta, basis_id, acc[0])
+    for i in range(n):
+        out[i] = y_mean + y_scale * acc[0, i]
 
 
 class KernelMean:
@@ -152,15 +178,11 @@ class KernelMean:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X, dtype=float)
-        lead = X.shape[:-1]
-        X2 = X.reshape(-1, X.shape[-1])
-        U = (X2 - self.x_mean) / self.x_scale
-        out = np.zeros((1, U.shape[0]))
-        kernel_sum(np.ascontiguousarray(U / self.ell)[None], self.ZlT, self.a, self.sf2,
-                   self.kernel_id, out)
-        acc = out[0]
-        _add_basis(np.ascontiguousarray(U), self.beta, self.basis_id, acc)
-        return (self.y_mean + self.y_scale * acc).reshape(lead)
+        X2 = np.ascontiguousarray(X.reshape(-1, X.shape[-1]))
+        out = np.empty(X2.shape[0])
+        _kernel_mean(X2, self.x_mean, self.x_scale, self.ell, self.ZlT, self.a, self.sf2, self.beta,
+                     self.basis_id, self.kernel_id, self.y_mean, self.y_scale, out)
+        return out.reshape(X.shape[:-1])
 
 
 class Table1D:
