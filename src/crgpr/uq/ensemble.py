@@ -146,7 +146,7 @@ class TabulatedSamples:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Sample s at x[s]: x (S, ...) or (S, ..., 1) -> (S, ...); 0 (the prior mean) outside
-        the grid, as the CR-GPR rollout's tables (learned.Approx)."""
+        the grid, as the CR-GPR rollout's tables (crgpr.gp.Table1D)."""
         return self._eval(x, False)
 
     def slope(self, x: np.ndarray) -> np.ndarray:
