@@ -77,13 +77,20 @@ def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):
     gps = blackbox.load_models(d / "models")
     params = rod_params(cfg)
 
-    def runaway(self, X, which):
-        out = np.zeros((X.shape[0], len(which)))
-        if which[0] == 0:  # learned tip velocity runs away: 50 m/s along x
-            out[-1, 0] = 50.0
-        return out
+    class Runaway:
+        """The learned tip velocity runs away: 50 m/s along x (evaluator k = 0 is dx/dt)."""
 
-    monkeypatch.setattr(blackbox.FastMean, "__call__", runaway)
+        def __init__(self, k: int):
+            self.k = k
+
+        def __call__(self, X):
+            out = np.zeros(X.shape[0])
+            if self.k == 0:
+                out[-1] = 50.0
+            return out
+
+    ks = iter(range(len(gps)))
+    monkeypatch.setattr(blackbox.KernelMean, "exact", staticmethod(lambda gp: Runaway(next(ks))))
     settings = SimSettings(dt=1e-4, t_end=0.2, record_every=5)
     t, q, p, info = blackbox.rollout(gps, 60.0, params, settings)
     assert info["diverged"] and info["node_diverged"] == params.N

@@ -193,6 +193,22 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def frame_to_grid(df: pd.DataFrame, columns: Sequence[str], source: str = "table"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A long (t, node) table as arrays: times (n_t,) and values (n_t, n_nodes, len(columns)).
+
+    Rows are sorted by (t, node); a table that is not a full grid raises ValueError naming
+    ``source``.
+    """
+    df = df.sort_values(["t", "node"])
+    t = np.unique(df["t"].to_numpy())
+    n_nodes = int(df["node"].max()) + 1
+    if len(df) != t.size * n_nodes:
+        raise ValueError(f"{source}: not a full (t, node) grid ({len(df)} rows, {t.size} times x "
+                         f"{n_nodes} nodes)")
+    return t, df[list(columns)].to_numpy().reshape(t.size, n_nodes, len(columns))
+
+
 def write_json(obj: Any, path: str | Path) -> None:
     with atomic_path(path, ".json") as tmp:
         tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n")

@@ -2,7 +2,7 @@
 
 A fully connected network maps (t, s, theta0) to the full state
 z = [x, y, theta, p_x, p_y, p_theta] of the planar Cosserat rod. It is trained on the
-residual of eq. (9),
+residual of eq. (9) (Sec. III-A),
 
     dz/dt = (J - R) H_z(z) + G u,        G u = [0, 0, 0, 0, -rho A g, 0],
 
@@ -63,11 +63,13 @@ from torch import nn
 from crgpr.config import ConfigError, rod_params
 from crgpr.io import read_parquet
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.seeds import pinn_seed
 
 log = logging.getLogger(__name__)
 
-STATE = ("x", "y", "theta", "p_x", "p_y", "p_theta")
+STATE = STATE_NAMES
 VARIANTS: dict[str, str] = {
     "pinn_physics": "physics only, no data",
     "pinn_data_1": "data-assisted, N_init = 1 (angles.train_deg)",
@@ -77,11 +79,11 @@ ACTIVATIONS = ("tanh", "sin")
 
 
 # --------------------------------------------------------------------------------------
-# scales and the physics residual of eq. (9)
+# scales and the physics residual of eq. (9), Sec. III-A
 # --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scales:
-    """Reference scales and non-dimensional coefficients of eq. (9)."""
+    """Reference scales and non-dimensional coefficients of eq. (9) (Sec. III-A)."""
 
     L: float  # length scale L0 [m]
     T: float  # time scale sqrt(L0 / g) [s]
@@ -130,7 +132,7 @@ def stress_resultants(z: torch.Tensor, z_s: torch.Tensor, sc: Scales) -> dict[st
 
 def ph_residual(z: torch.Tensor, z_t: torch.Tensor, z_s: torch.Tensor, z_ss: torch.Tensor,
                 sc: Scales) -> torch.Tensor:
-    """Residual dz/dt - (J - R) H_z - G u of eq. (9), non-dimensional, (..., 6).
+    """Residual dz/dt - (J - R) H_z - G u of eq. (9) (Sec. III-A), non-dimensional, (..., 6).
 
     ``z`` (..., 6) is the non-dimensional state, ``z_t`` its derivative in t / T, ``z_s`` and
     ``z_ss`` (..., >= 3) the first and second derivatives of (x, y, theta) in s / L0. The
@@ -301,7 +303,7 @@ def variant_angles(cfg: dict[str, Any], variant: str) -> list[int]:
 
 def variant_seed(cfg: dict[str, Any], variant: str) -> int:
     """Seed of one variant, derived from the global seed and the variant name."""
-    return (int(cfg["seed"]) * 1000003 + sum(map(ord, variant)) * 7919) % (2**31 - 1)
+    return pinn_seed(cfg["seed"], variant)
 
 
 def load_training_data(paths: dict[int, str], sc: Scales) -> tuple[np.ndarray, np.ndarray]:
@@ -382,7 +384,7 @@ def train_pinn(cfg: dict[str, Any], variant: str, data_paths: dict[int, str],
             loss = loss + w_data * l_dat
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        if ps.get("grad_clip"):
+        if float(ps["grad_clip"]) > 0.0:  # 0 = off (schema)
             nn.utils.clip_grad_norm_(model.parameters(), float(ps["grad_clip"]))
         opt.step()
         sched.step()

@@ -22,6 +22,7 @@ from crgpr.io import atomic_dir, read_parquet, write_json, write_parquet
 from crgpr.learning.prefilter import PREFILTER_COLUMNS
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +33,7 @@ def blackbox_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary:
     st = blackbox.blackbox_settings(cfg)
     df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
     F, Y, center = blackbox.training_set(df, params, cfg)
-    seed = int(cfg["seed"]) + 4000
+    seed = stage_seed(cfg["seed"], "blackbox")
     t0 = time.perf_counter()
     gps = blackbox.fit_blackbox(F, Y, st, seed)
     rows = []

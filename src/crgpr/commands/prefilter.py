@@ -14,6 +14,7 @@ from crgpr.config import load_config, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning import prefilter as pf
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_from_frame
+from crgpr.seeds import stage_seed
 
 
 def prefilter(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -> None:
@@ -24,7 +25,7 @@ def prefilter(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -
         seed = None
     else:
         settings = pf.PrefilterSettings.from_config(cfg)
-        seed = int(cfg["seed"]) + 1000 + int(angle)
+        seed = stage_seed(cfg["seed"], "prefilter", int(angle))
     traj = trajectory_from_frame(read_parquet(gt, required=TRAJECTORY_COLUMNS), params)
     t0 = time.perf_counter()
     df, meta = pf.prefilter(traj, method, settings, seed or 0)

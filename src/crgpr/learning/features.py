@@ -48,6 +48,13 @@ OBJ_N_FEATURES = ("nu1", "nu2", "kappa")
 OBJ_M_FEATURES = ("kappa", "kappa_jm1", "kappa_jp1", "nu1", "nu2")
 
 
+def theta_center(theta: np.ndarray) -> float:
+    """Centre of the training range of theta (n_t, N+1) over the free nodes 1..N: the middle of
+    the 2 pi window that ``wrap_shift`` maps angle features into."""
+    th = theta[:, 1:]
+    return 0.5 * (float(th.min()) + float(th.max()))
+
+
 def wrap_shift(theta: np.ndarray, center: float | None) -> np.ndarray:
     """The multiple of 2 pi to add to theta to land in [center - pi, center + pi)."""
     if center is None:

@@ -34,14 +34,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from crgpr.config import ConfigError, rod_params
-from crgpr.gp import GP, basis_matrix_std, fit_gp, kernel_matrix
-from crgpr.io import load_npz
+from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -69,12 +69,6 @@ def model_spec(cfg: dict[str, Any], name: str) -> dict[str, Any]:
     raise ConfigError(f"unknown gradient model {name!r}; expected one of {ALL_MODELS}")
 
 
-def theta_center(arr: dict[str, np.ndarray]) -> float:
-    """Centre of the training range of theta over the free nodes (for the 2 pi window)."""
-    th = arr["theta"][:, 1:]
-    return 0.5 * (float(th.min()) + float(th.max()))
-
-
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
                   center: float | None) -> tuple[np.ndarray, np.ndarray]:
     """All (X, y) samples of one model from the prefilter arrays (before subsampling)."""
@@ -89,7 +83,7 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         tgt = hz[:, 1:, 2]
     elif name in MOMENTUM_MODELS:
         k = MOMENTUM_MODELS.index(name)
-        X = np.stack([arr[("p_x", "p_y", "p_theta")[k]]], axis=-1)[:, 1:]
+        X = np.stack([arr[STATE_NAMES[3 + k]]], axis=-1)[:, 1:]
         tgt = hz[:, 1:, 3 + k]
     elif name in OBJECTIVE_MODELS:
         sg = ft.segments(x, y, th, ds)
@@ -111,54 +105,6 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
 # ---------------------------------------------------------------------------------------------
 # approximations of the posterior mean for the rollouts
 # ---------------------------------------------------------------------------------------------
-def farthest_points(P: np.ndarray, M: int, seed: int) -> np.ndarray:
-    """Indices of M rows of P chosen by greedy farthest-point sampling (seeded start)."""
-    n = P.shape[0]
-    if M >= n:
-        return np.arange(n)
-    rng = np.random.default_rng(seed)
-    idx = np.empty(M, dtype=int)
-    idx[0] = rng.integers(n)
-    d2 = ((P - P[idx[0]]) ** 2).sum(1)
-    for k in range(1, M):
-        idx[k] = int(np.argmax(d2))
-        d2 = np.minimum(d2, ((P - P[idx[k]]) ** 2).sum(1))
-    return idx
-
-
-def dtc_fit(gp: GP, X: np.ndarray, V: np.ndarray, M: int, seed: int) -> dict[str, np.ndarray]:
-    """DTC/SoR mean with jointly estimated basis coefficients (standardised units)."""
-    U = gp.standardise_x(X)
-    ell = np.broadcast_to(gp.lengthscales, (gp.dim,)).astype(float)
-    zi = farthest_points(U / ell, M, seed)
-    Z = U[zi]
-    Kxz = kernel_matrix(gp.kernel, U, Z, gp.sigma_f, ell)
-    Kzz = kernel_matrix(gp.kernel, Z, Z, gp.sigma_f, ell)
-    H = basis_matrix_std(gp.basis, U)
-    m = H.shape[1]
-    Phi = np.hstack([H, Kxz])
-    A = Phi.T @ Phi
-    A[m:, m:] += gp.sigma_n**2 * (Kzz + 1e-8 * gp.sigma_f**2 * np.eye(len(zi)))
-    A[np.diag_indices_from(A)] += 1e-10 * np.trace(A) / A.shape[0]
-    sol = sla.solve(A, Phi.T @ V, assume_a="pos")
-    return {"dtc_Z": Z, "dtc_beta": sol[:m], "dtc_w": sol[m:]}
-
-
-def dtc_predict(gp_like: dict[str, Any], Xs: np.ndarray) -> np.ndarray:
-    """Evaluate a DTC approximation (dict with hyperparameters and dtc arrays) at Xs."""
-    U = (Xs - gp_like["x_mean"]) / gp_like["x_scale"]
-    ell = np.broadcast_to(gp_like["lengthscales"], (U.shape[1],)).astype(float)
-    K = kernel_matrix(gp_like["kernel"], U, gp_like["dtc_Z"], gp_like["sigma_f"], ell)
-    v = K @ gp_like["dtc_w"] + basis_matrix_std(gp_like["basis"], U) @ gp_like["dtc_beta"]
-    return gp_like["y_mean"] + gp_like["y_scale"] * np.ravel(v)
-
-
-def _gp_like(gp: GP, approx: dict[str, np.ndarray]) -> dict[str, Any]:
-    return {"kernel": gp.kernel, "basis": gp.basis, "sigma_f": gp.sigma_f,
-            "lengthscales": np.ravel(gp.lengthscales), "x_mean": gp.x_mean, "x_scale": gp.x_scale,
-            "y_mean": float(gp.y_mean[0]), "y_scale": float(gp.y_scale[0]), **approx}
-
-
 def _err(a: np.ndarray, b: np.ndarray, scale: float) -> dict[str, float]:
     d = a - b
     return {"rmse": float(np.sqrt(np.mean(d**2))), "max_abs": float(np.abs(d).max()),
@@ -193,17 +139,17 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
         gp.ensure_factorised()
         ell = float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0])
         grid = np.linspace(Xn.min() - 6 * ell, Xn.max() + 6 * ell, 4001)
-        table = gp.predict(grid[:, None])
-        arrays = {"table_x": grid, "table_y": table}
+        tab = Table1D.from_gp(gp, grid)
+        arrays = {"table_x": grid, "table_y": tab.ty}
         xc = rng.uniform(grid[0], grid[-1], int(gm["check_points"]))
-        approx = np.interp(xc, grid, table, left=0.0, right=0.0)
+        approx = tab(xc)
         report["approximation"] = "exact mean tabulated (4001 points, linear interpolation)"
         report["approx_error_vs_exact"] = _err(approx, gp.predict(xc[:, None]), ystd)
     else:
         V = ((yn - gp.y_mean[0]) / gp.y_scale[0])[:, None]
         M = int(gm["inducing"])
         arrays = dtc_fit(gp, Xn, V, M, seed)
-        like = _gp_like(gp, arrays)
+        like = KernelMean.dtc(gp, arrays["dtc_Z"], arrays["dtc_w"], arrays["dtc_beta"])
         n_chk = min(int(gm["check_points"]), n)
         ci = rng.choice(n, size=n_chk, replace=False)
         limit = int(gm["exact_check_max_n"])
@@ -211,7 +157,7 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
             gp.ensure_factorised()
             exact = gp.predict(Xn[ci])
             report["approx_check"] = f"exact posterior mean over all n = {n} points"
-            report["approx_error_vs_exact"] = _err(dtc_predict(like, Xn[ci]), exact, ystd)
+            report["approx_error_vs_exact"] = _err(like(Xn[ci]), exact, ystd)
         else:
             si = np.sort(rng.choice(n, size=limit, replace=False))
             sub = fit_gp(Xn[si], yn[si], kernel=gp.kernel, basis=gp.basis, ard=gp.ard,
@@ -221,14 +167,15 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
             sub.x_mean, sub.x_scale = gp.x_mean, gp.x_scale
             sub._factorise()
             Vs = ((yn[si] - gp.y_mean[0]) / gp.y_scale[0])[:, None]
-            sub_like = _gp_like(gp, dtc_fit(gp, Xn[si], Vs, M, seed))
+            sub_arr = dtc_fit(gp, Xn[si], Vs, M, seed)
+            sub_like = KernelMean.dtc(gp, sub_arr["dtc_Z"], sub_arr["dtc_w"], sub_arr["dtc_beta"])
             cj = rng.choice(limit, size=min(n_chk, limit), replace=False)
             report["approx_check"] = (f"n = {n} > exact_check_max_n: exact vs DTC (M = {M}) both "
                                       f"conditioned on a random subset of {limit} points")
-            report["approx_error_vs_exact"] = _err(dtc_predict(sub_like, Xn[si][cj]), sub.predict(Xn[si][cj]),
+            report["approx_error_vs_exact"] = _err(sub_like(Xn[si][cj]), sub.predict(Xn[si][cj]),
                                                    ystd)
         report["approximation"] = f"DTC mean, M = {len(arrays['dtc_Z'])} farthest-point inducing inputs"
-        report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((dtc_predict(like, Xn) - yn) ** 2)) / ystd)
+        report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((like(Xn) - yn) ** 2)) / ystd)
     report["target_std"] = ystd
     report["seconds"] = time.perf_counter() - t0
     log.info("%s: n = %d, %s, error vs exact %s, %.1f s", name, n, report["approximation"],
@@ -245,11 +192,11 @@ def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_ste
     arr = prefiltered_arrays(read_prefiltered(prefiltered))
     if arr["x"].shape[1] != params.N + 1:
         raise ValueError(f"{prefiltered}: {arr['x'].shape[1]} nodes but config rod.N = {params.N}")
-    center = theta_center(arr) if gm["theta_wrap"] else None
+    center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
     X, y = training_data(arr, params, name, center)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError(f"{prefiltered}: non-finite features or targets for model {name}")
-    seed = int(cfg["seed"]) + 2000 + ALL_MODELS.index(name)
+    seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
     extra = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
              "prefilter": prefilter_method, "source": str(prefiltered), "seed": seed, **report,
@@ -258,12 +205,3 @@ def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_ste
     return extra
 
 
-def load_model_arrays(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """npz arrays and JSON metadata of a saved gradient model (no pickle, no factorisation)."""
-    import json
-
-    stem = Path(stem)
-    js = stem.with_suffix(".json")
-    if not js.exists():
-        raise FileNotFoundError(f"{js}: gradient model file missing")
-    return load_npz(stem.with_suffix(".npz")), json.loads(js.read_text())

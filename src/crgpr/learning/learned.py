@@ -12,8 +12,8 @@ Methods (config ``rollouts.methods``):
 * ``cr_gpr_objective``: local resultants n1, n2, m from frame-indifferent strains, rotated
   back (q_x = n1 cos theta_bar - n2 sin theta_bar, ...), and the discrete moment balance
   -dH/dtheta_i = (m_i - m_{i-1} + ds/2 (c_i + c_{i-1})) / (w_i ds), c = nu1 n2 - nu2 n1.
-The GP means are evaluated by their measured approximations (gradient_models.py), compiled
-with numba and batched over the nodes.
+The GP means are evaluated by the evaluators of the saved models (``crgpr.gp.load_evaluator``:
+the DTC mean or the 1-D table whose error against the exact mean gradient_models.py measured).
 
 Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
 dissipated power, paper Fig. 5), and the learned stored energy by the path integral
@@ -33,99 +33,18 @@ from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_json, write_parquet
 from crgpr.learning import features as ft
-from crgpr.learning.gradient_models import MOMENTUM_MODELS, load_model_arrays
+from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, node_weights, straight_rod
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 log = logging.getLogger(__name__)
-
-_BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
-_KERNEL_ID = {"se": 0, "matern52": 1}
-
-
-@njit(cache=True)
-def _dtc_eval(X, x_mean, x_scale, ell, Zl, w, sf2, beta, basis_id, kernel_id, y_mean, y_scale, out):
-    """out[i] = y_mean + y_scale (sum_m w_m k(u_i, z_m) + h(u_i)^T beta), u = (x - x_mean) / x_scale."""
-    n, d = X.shape
-    M = Zl.shape[0]
-    u = np.empty(d)
-    ul = np.empty(d)
-    for i in range(n):
-        for k in range(d):
-            u[k] = (X[i, k] - x_mean[k]) / x_scale[k]
-            ul[k] = u[k] / ell[k]
-        acc = 0.0
-        for m in range(M):
-            r2 = 0.0
-            for k in range(d):
-                dd = ul[k] - Zl[m, k]
-                r2 += dd * dd
-            if kernel_id == 0:
-                acc += w[m] * math.exp(-0.5 * r2)
-            else:
-                r = math.sqrt(r2)
-                s5r = 2.23606797749979 * r
-                acc += w[m] * (1.0 + s5r + (5.0 / 3.0) * r2) * math.exp(-s5r)
-        acc *= sf2
-        if basis_id >= 1:
-            acc += beta[0]
-        if basis_id >= 2:
-            for k in range(d):
-                acc += beta[1 + k] * u[k]
-        if basis_id >= 3:
-            for k in range(d):
-                acc += beta[1 + d + k] * u[k] * u[k]
-        out[i] = y_mean + y_scale * acc
-
-
-class Approx:
-    """Compiled evaluator of one saved gradient model's rollout approximation."""
-
-    def __init__(self, stem: str | Path):
-        arr, meta = load_model_arrays(stem)
-        self.name = meta["name"]
-        self.meta = meta
-        self.dim = int(meta["dim"])
-        self.y_mean = float(np.ravel(arr["y_mean"])[0])
-        self.y_scale = float(np.ravel(arr["y_scale"])[0])
-        if "table_x" in arr:
-            self.kind = "table"
-            self.tx, self.ty = arr["table_x"], arr["table_y"]
-            self.tslope = np.diff(self.ty) / np.diff(self.tx)
-        elif "dtc_Z" in arr:
-            self.kind = "dtc"
-            if meta["basis"] not in _BASIS_ID or meta["kernel"] not in _KERNEL_ID:
-                raise ValueError(f"{stem}: unsupported kernel/basis {meta['kernel']}/{meta['basis']}")
-            ell = np.broadcast_to(np.ravel(arr["lengthscales"]), (self.dim,)).astype(float).copy()
-            self.args = (arr["x_mean"].astype(float), arr["x_scale"].astype(float), ell,
-                         np.ascontiguousarray(arr["dtc_Z"] / ell), np.ascontiguousarray(arr["dtc_w"][:, 0]),
-                         float(meta["sigma_f_std"]) ** 2, np.ascontiguousarray(arr["dtc_beta"][:, 0]),
-                         _BASIS_ID[meta["basis"]], _KERNEL_ID[meta["kernel"]], self.y_mean, self.y_scale)
-        else:
-            raise ValueError(f"{stem}: no rollout approximation arrays (table_x or dtc_Z)")
-
-    def __call__(self, X: np.ndarray) -> np.ndarray:
-        if self.kind == "table":
-            x = np.asarray(X, dtype=float)
-            return np.interp(x, self.tx, self.ty, left=0.0, right=0.0)
-        X = np.ascontiguousarray(X, dtype=float)
-        out = np.empty(X.shape[0])
-        _dtc_eval(X, *self.args, out)
-        return out
-
-    def slope(self, x: np.ndarray) -> np.ndarray:
-        """Derivative of the tabulated 1D interpolant (segment slope; 0 outside)."""
-        j = np.searchsorted(self.tx, x) - 1
-        inside = (j >= 0) & (j < self.tslope.size)
-        return np.where(inside, self.tslope[np.clip(j, 0, self.tslope.size - 1)], 0.0)
-
 
 PAPER_COMPONENTS = ("q_x", "q_y", "dH_dtheta")
 OBJECTIVE_COMPONENTS = ("obj_n1", "obj_n2", "obj_m")
@@ -178,8 +97,8 @@ class LearnedRod:
         names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
         if names is None:
             raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
-        comps: dict[str, Component] = {m: Approx(momentum_dir / m) for m in MOMENTUM_MODELS}
-        comps.update({m: Approx(model_dir / m) for m in names})
+        comps: dict[str, Component] = {m: load_evaluator(momentum_dir / m) for m in MOMENTUM_MODELS}
+        comps.update({m: load_evaluator(model_dir / m) for m in names})
         center = None
         if features == "paper":
             center = comps["q_x"].meta.get("theta_center")

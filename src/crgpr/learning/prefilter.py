@@ -12,7 +12,7 @@ Two methods write the same schema to ``results/prefilter/{method}/{angle}.parque
         fractions of N) on ``hyper_points`` evenly spaced samples, then shared by all nodes of
         that component (one Cholesky factor serves all 26 nodes). Posterior mean and its
         analytic first and second time derivatives are evaluated on the output grid.
-``fd``  (the ablation, paper Table IV): z itself and central differences in time,
+``fd``  (the ablation, paper Table V): z itself and central differences in time,
         dz/dt = (z_{k+1} - z_{k-1}) / (2 dt), d2z/dt2 = (z_{k+1} - 2 z_k + z_{k-1}) / dt^2, on
         the FULL recorded data (one-sided second-order at the two ends).
 
@@ -41,7 +41,7 @@ import pandas as pd
 
 from crgpr.config import ConfigError
 from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
-from crgpr.io import read_parquet
+from crgpr.io import frame_to_grid, read_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory
 
@@ -58,14 +58,14 @@ PREFILTER_COLUMNS: tuple[str, ...] = (*TRAJECTORY_COLUMNS, *D1_COLUMNS, *D2_COLU
 class PrefilterSettings:
     """Section ``prefilter`` of config.yaml (see its schema for units and ranges)."""
 
-    stride: int = 5  # condition the state GPs on every stride-th recorded sample
-    n_t_out: int = 759  # output time grid N_t'
-    kernel: str = "matern52"
-    basis: str = "quadratic"
-    noise_var_min: float = 1.0e-9  # lower bound on the noise variance (standardised units)
-    hyper_nodes: tuple[float, ...] = (0.33, 0.67, 1.0)  # fractions of N
-    hyper_points: int = 200
-    n_restarts: int = 1
+    stride: int  # condition the state GPs on every stride-th recorded sample
+    n_t_out: int  # output time grid N_t'
+    kernel: str
+    basis: str
+    noise_var_min: float  # lower bound on the noise variance (standardised units)
+    hyper_nodes: tuple[float, ...]  # fractions of N
+    hyper_points: int
+    n_restarts: int
 
     @classmethod
     def from_config(cls, cfg: dict[str, Any]) -> PrefilterSettings:
@@ -124,7 +124,7 @@ def _frame(traj: Trajectory, t: np.ndarray, z: np.ndarray, d1: np.ndarray, d2: n
 
 
 def fd_prefilter(traj: Trajectory, settings: PrefilterSettings) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Central finite differences in time on the full recorded data (ablation, Table IV)."""
+    """Central finite differences in time on the full recorded data (ablation, Table V)."""
     z = traj.z
     t = traj.t
     if len(t) < 3:
@@ -218,13 +218,8 @@ def read_prefiltered(path: str | Path) -> pd.DataFrame:
 
 def prefiltered_arrays(df: pd.DataFrame) -> dict[str, np.ndarray]:
     """Arrays (n_t, N+1) per column of a prefilter table, plus 't' (n_t,)."""
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"prefilter table is not a full (t, node) grid: {len(df)} rows, "
-                         f"{t.size} times x {n_nodes} nodes")
-    out = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in PREFILTER_COLUMNS
-           if c not in ("theta0_deg", "t", "node")}
+    cols = [c for c in PREFILTER_COLUMNS if c not in ("theta0_deg", "t", "node")]
+    t, g = frame_to_grid(df, cols, "prefilter table")
+    out = {c: np.ascontiguousarray(g[..., k]) for k, c in enumerate(cols)}
     out["t"] = t
     return out

@@ -1,4 +1,4 @@
-"""Physical and simulation parameters (paper Table "Physical and Simulation Parameters").
+"""Physical and simulation parameters (paper Table I, Sec. IV).
 
 Symbols follow the paper; units are SI and stated next to each field. The extra
 fields after ``kappa0`` are the physical effects of the missing-physics workflow;
@@ -17,7 +17,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RodParams:
-    """Planar Cosserat rod parameters (paper Table III plus the choices it leaves out)."""
+    """Planar Cosserat rod parameters (paper Table I plus the choices it leaves out)."""
 
     L0: float = 0.5  # rod length [m]
     N: int = 25  # number of segments [-] (N + 1 nodes, node 0 clamped)

@@ -30,7 +30,7 @@ METRICS: tuple[str, ...] = ("rmse_theta", "tip_rmse_over_L", "group_nrmse")
 METRIC_LABELS = {"rmse_theta": r"RMSE($\theta$) [rad]", "tip_rmse_over_L": r"RMSE$_{tip}$/L",
                  "group_nrmse": "Group-nRMSE"}
 
-# Paper Sec. V text and Table IV (two-step CR-GPR row); None where the paper gives no number.
+# Paper Sec. V text and Table V (two-step CR-GPR row); None where the paper gives no number.
 PAPER: dict[str, dict[str, Any]] = {
     "blackbox_gp": {"label": "Black-box GP", "n_init": 1, "rmse_theta": 4.559},
     "pinn_physics": {"label": "PINN (physics only)", "n_init": 0, "rmse_theta": None},

@@ -14,7 +14,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from crgpr.io import atomic_path  # noqa: E402
+from crgpr.io import (  # noqa: E402
+    atomic_path,  # noqa: E402
+    frame_to_grid,
+)
 from crgpr.physics.rod import STATE_NAMES  # noqa: E402
 
 LABELS = {"x": "x [m]", "y": "y [m]", "theta": r"$\theta$ [rad]", "p_x": r"$p_x$ [kg/s]",
@@ -28,10 +31,7 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
 
 
 def _arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n = int(df["node"].max()) + 1
-    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n, 6)
+    return frame_to_grid(df, STATE_NAMES)
 
 
 def overlays(gt: pd.DataFrame, pred: pd.DataFrame, out: str | Path, method: str, angle: float) -> None:

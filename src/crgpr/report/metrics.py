@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.io import read_parquet
+from crgpr.io import frame_to_grid, read_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
@@ -39,12 +39,7 @@ PAPER_TABLE4 = {"two-step (GP dz/dt)": {"rmse_theta": 0.2218, "tip_rmse_over_L":
 
 
 def _grid(df: pd.DataFrame, path: str) -> tuple[np.ndarray, np.ndarray]:
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"{path}: not a full (t, node) grid ({len(df)} rows, {t.size} x {n_nodes})")
-    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n_nodes, 6)
+    return frame_to_grid(df, STATE_NAMES, path)
 
 
 def accuracy(gt: pd.DataFrame, pred: pd.DataFrame, L0: float, gt_name: str = "ground truth",
@@ -89,7 +84,7 @@ def accuracy_table(pairs: list[tuple[str, float, str, str]], L0: float) -> pd.Da
 
 
 def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
-    """Table I: RMSE(theta) and R^2 per angle and mean, paper beside ours."""
+    """Table III (file table1_accuracy.csv): RMSE(theta) and R^2 per angle and mean, paper beside ours."""
     sel = acc[acc["method"] == method].set_index("theta0_deg")
     rows = []
     for metric in ("rmse_theta", "r2_theta"):
@@ -107,7 +102,7 @@ def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
 
 
 def table4(acc: pd.DataFrame, methods: list[str]) -> pd.DataFrame:
-    """Table IV: metrics averaged over the test angles per pipeline, paper beside ours."""
+    """Table V (ablation): metrics averaged over the test angles per pipeline, paper beside ours."""
     labels = list(PAPER_TABLE4)
     rows = []
     for i, m in enumerate(methods):
