@@ -226,14 +226,15 @@ def run_hamiltonian(
     two integrators agree to round-off. Returns an ``Integration`` whose ``v`` holds the
     MOMENTA p per length; ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid
     over each damping half-step; needs ``wds``).
+    States may carry leading batch axes (..., N+1, 3) (several initial states integrated at
+    once); ``dissipated`` is then summed over the batch.
     Raises SimulationDiverged with the time and node of the first non-finite or runaway state.
     """
-    n = q0.shape[0]
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
-    wds = np.ones(n) if wds is None else np.asarray(wds, dtype=float)
+    wds = np.ones(q.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     n_rec = n_steps // every + 1
-    out_q = np.zeros((n_rec, n, 3))
+    out_q = np.zeros((n_rec, *q.shape))
     out_p = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     out_q[0], out_p[0] = q, p
@@ -270,7 +271,8 @@ def run_hamiltonian(
             v = velocity(p)
             if not (np.all(np.isfinite(v)) and np.all(np.isfinite(q)) and np.all(np.abs(v) < MAX_SPEED)
                     and np.all(np.abs(q) < MAX_COORD)):
-                node = _locate_failure(np.where(np.abs(q) < MAX_COORD, q, np.nan), v)
+                node = _locate_failure(np.where(np.abs(q) < MAX_COORD, q, np.nan).reshape(-1, 3),
+                                       v.reshape(-1, 3)) % q.shape[-2]
                 raise SimulationDiverged(
                     f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: "
                     f"state non-finite or speed > {MAX_SPEED:g}.", k, k * dt, node)
