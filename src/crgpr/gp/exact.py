@@ -48,7 +48,7 @@ def cutoff_radius(kernel: str, tol: float) -> float:
 
 @njit(cache=True, parallel=True)
 def _exact_eval(Ul, key, alpha, rcut, kernel_id, out_k, out_d):
-    """out_k[i] = sum_j alpha_j k(ul_i, Ul_j)/sigma_f^2 over |r| <= rcut; out_d: d/du of the sum (1-D only)."""
+    """out_k[i] = sum_j alpha_j k(ul_i, Ul_j) / sigma_f^2 over |r| <= rcut; out_d its d/du (1-D)."""
     n, d = Ul.shape
     nq = out_k.shape[0]
     rc2 = rcut * rcut
@@ -78,6 +78,48 @@ def _exact_eval(Ul, key, alpha, rcut, kernel_id, out_k, out_d):
         out_d[i] = dacc
 
 
+@njit(cache=True, parallel=True)
+def _fill_kernel(Ul, kernel_id, sf2, noise2, K):
+    """K = k(U, U) + noise2 I (lower triangle and diagonal) for scaled inputs, in place."""
+    n, d = Ul.shape
+    for i in prange(n):
+        for j in range(i + 1):
+            r2 = 0.0
+            for k in range(d):
+                dd = Ul[i, k] - Ul[j, k]
+                r2 += dd * dd
+            if kernel_id == 0:
+                v = sf2 * math.exp(-0.5 * r2)
+            else:
+                r = math.sqrt(r2)
+                v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+            K[i, j] = v
+        K[i, i] += noise2
+
+
+def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
+    """(alpha (n,), beta (m,)) of the exact posterior mean over all n points (R&W 2.41-2.42).
+
+    Same algebra as ``GP._factorise`` but with one n x n array (filled in place, Cholesky
+    in place), so n ~ 2e4 fits in memory.
+    """
+    import scipy.linalg as sla
+
+    ell = np.broadcast_to(np.ravel(gp.lengthscales), (gp.dim,)).astype(float)
+    U = gp.standardise_x(gp.X)
+    K = np.empty((gp.n, gp.n), order="F")
+    _fill_kernel(np.ascontiguousarray(U / ell), _KERNEL_ID[gp.kernel], gp.sigma_f**2, gp.sigma_n**2, K)
+    L = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+    V = np.ravel(gp._V()[:, 0])
+    H = basis_matrix_std(gp.basis, U)
+    KiV = sla.cho_solve((L, True), V, check_finite=False)
+    if H.shape[1]:
+        KiH = sla.cho_solve((L, True), H, check_finite=False)
+        beta = np.linalg.solve(H.T @ KiH, H.T @ KiV)
+        return KiV - KiH @ beta, beta
+    return KiV, np.zeros(0)
+
+
 class ExactMean:
     """Exact posterior mean of one saved GP (stem.npz/.json, ``GP.save``), truncated at ``tol``."""
 
@@ -85,7 +127,11 @@ class ExactMean:
         gp = stem if isinstance(stem, GP) else GP.load(stem)
         if gp.multi:
             raise ValueError("ExactMean: single-output GPs only")
-        gp.ensure_factorised()
+        if gp.alpha is not None:
+            alpha_all = np.ravel(gp.alpha[:, 0])
+            beta = np.ravel(gp.beta[:, 0]) if gp.beta.size else np.zeros(0)
+        else:
+            alpha_all, beta = exact_weights(gp)
         self.gp = gp
         self.name = str(stem) if not isinstance(stem, GP) else "gp"
         self.dim = gp.dim
@@ -99,8 +145,8 @@ class ExactMean:
         Ul = Ul[:, self.perm]
         order = np.argsort(Ul[:, 0], kind="stable")
         self.Ul = np.ascontiguousarray(Ul[order])
-        self.alpha = np.ascontiguousarray(gp.alpha[order, 0])
-        self.beta = np.ravel(gp.beta[:, 0]) if gp.beta.size else np.zeros(0)
+        self.alpha = np.ascontiguousarray(alpha_all[order])
+        self.beta = beta
         self.sf2 = gp.sigma_f**2
         self.tol = tol
         self.rcut = cutoff_radius(gp.kernel, tol)

@@ -68,6 +68,25 @@ PAPER_TABLE2: dict[str, dict[str, Any]] = {
     "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
                     "n": 980},
 }
+
+
+def paper_hyperparameters(name: str, x_scale: np.ndarray, y_scale: float, ard: bool,
+                          inputs_standardised: bool = False) -> dict[str, Any]:
+    """Table II's sigma_f, ell, sigma_n of model ``name`` in our standardised units (issue 11).
+
+    Read in ORIGINAL units (MATLAB fitrgp's default, Standardize = false): ell_std = ell / x_scale,
+    sigma_f_std = sigma_f / y_scale, sigma_n_std = sigma_n / y_scale. ``inputs_standardised``:
+    read ell as already standardised (fitrgp with Standardize = true scales the predictors only).
+    """
+    row = PAPER_TABLE2[name]
+    txt = str(row["ell"]).strip("[]")
+    ell = np.array([float(v) for v in txt.split(",")])
+    if not inputs_standardised:
+        ell = ell / np.asarray(x_scale, dtype=float)[: ell.size] if ard else ell / float(np.ravel(x_scale)[0])
+    return {"sigma_f": float(row["sigma_f"]) / y_scale, "lengthscales": ell,
+            "sigma_n": float(row["sigma_n"]) / y_scale}
+
+
 FEATURE_NAMES: dict[str, tuple[str, ...]] = {
     "q_x": ft.PAPER_Q_FEATURES, "q_y": ft.PAPER_Q_FEATURES, "dH_dtheta": ft.PAPER_THETA_FEATURES,
     "dH_dp_x": ("p_x",), "dH_dp_y": ("p_y",), "dH_dp_theta": ("p_theta",),

@@ -68,7 +68,7 @@ class ThetaDerivative:
 
     def __init__(self, params: RodParams, mode: str = "rotated"):
         if params.nonlinear_stiffness or params.stiffness_gradient or params.kappa0:
-            raise ValueError("oracle: only the paper's linear, uniform, straight rod is written in closed form")
+            raise ValueError("oracle: only the paper's linear, uniform, straight rod has a closed form")
         if mode not in ("rotated", "nodal"):
             raise ValueError(f"oracle dH_dtheta: unknown mode {mode!r}; expected 'rotated' or 'nodal'")
         self.params, self.mode = params, mode
@@ -98,7 +98,8 @@ class ThetaDerivative:
             # e_{N-2} = R(-a) e_{N-1}, a = theta_N - theta_{N-1} (constant curvature over the last
             # two segments), e_{N-1} = (1.5 I - 0.5 R(-a))^-1 x'_N
             a = th - thm
-            m11, m12 = 1.5 - 0.5 * np.cos(a), -0.5 * np.sin(a)  # 1.5 I - 0.5 R(-a) = [[m11, m12], [-m12, m11]]
+            # 1.5 I - 0.5 R(-a) = [[m11, m12], [-m12, m11]]
+            m11, m12 = 1.5 - 0.5 * np.cos(a), -0.5 * np.sin(a)
             det = m11 * m11 + m12 * m12
             ext, eyt = (m11 * ex - m12 * ey) / det, (m12 * ex + m11 * ey) / det
             cm = np.where(tip, self._couple(tbm, ext, eyt), cm)
@@ -134,6 +135,6 @@ def mixed_components(learned: Mapping[str, object], params: RodParams, learned_n
     comps = oracle_components(params, theta_mode)
     for name in learned_names:
         if name not in comps:
-            raise ValueError(f"oracle ablation: unknown component {name!r}; expected one of {ORACLE_COMPONENTS}")
+            raise ValueError(f"oracle ablation: unknown component {name!r}; expected {ORACLE_COMPONENTS}")
         comps[name] = learned[name]
     return comps
