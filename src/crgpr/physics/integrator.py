@@ -272,7 +272,8 @@ def run_hamiltonian(
             if not (np.all(np.isfinite(v)) and np.all(np.isfinite(q)) and np.all(np.abs(v) < MAX_SPEED)
                     and np.all(np.abs(q) < MAX_COORD)):
                 node = _locate_failure(np.where(np.abs(q) < MAX_COORD, q, np.nan).reshape(-1, 3),
-                                       v.reshape(-1, 3)) % q.shape[-2]
+                                       v.reshape(-1, 3))
+                node = node % q.shape[-2] if node >= 0 else node
                 raise SimulationDiverged(
                     f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: "
                     f"state non-finite or speed > {MAX_SPEED:g}.", k, k * dt, node)
