@@ -12,6 +12,7 @@ rule oracle_ablation:
     output:
         table=f"{RESULTS}/tables/oracle_ablation.csv",
         pointwise=f"{RESULTS}/tables/oracle_pointwise.csv",
+        gap=f"{RESULTS}/tables/oracle_exact_gap.csv",
         figure=report(
             f"{RESULTS}/figures/oracle_ablation.png",
             caption="../report/oracle_ablation.rst",
@@ -21,6 +22,10 @@ rule oracle_ablation:
         rod=config["rod"],
         simulation=config["simulation"],
         theta_closure=config["oracle"]["theta_closure"],
+        exact_subset=config["oracle"]["exact_subset"],
+        exact_seed=config["oracle"]["exact_seed"],
+        exact_tol=config["oracle"]["exact_tol"],
+        exact_check_every=config["oracle"]["exact_check_every"],
     log:
         "logs/tables/oracle_ablation.log",
     benchmark:
@@ -38,5 +43,6 @@ rule oracle_ablation:
 ALL_TARGETS.extend([
     f"{RESULTS}/tables/oracle_ablation.csv",
     f"{RESULTS}/tables/oracle_pointwise.csv",
+    f"{RESULTS}/tables/oracle_exact_gap.csv",
     f"{RESULTS}/figures/oracle_ablation.png",
 ])
