@@ -30,7 +30,8 @@ def test_exact_variant_component_equals_dense_posterior_mean_on_subset(tmp_path)
     X = rng.normal(size=(n, d)) * np.array([1.5, 1.5, 1.5, 100.0, 0.5, 0.8])
     y = np.sin(X[:, 0]) - 0.01 * X[:, 3] + 0.05 * rng.standard_normal(n)
     gp = fit_gp(X, y, kernel="se", basis="constant", ard=True, n_restarts=0, seed=2,
-                fixed={"sigma_f": 1.1, "lengthscales": np.array([0.8, 2.0, 3.0, 1.0, 4.0, 5.0]), "sigma_n": 0.2})
+                fixed={"sigma_f": 1.1, "lengthscales": np.array([0.8, 2.0, 3.0, 1.0, 4.0, 5.0]),
+                       "sigma_n": 0.2})
     gp.save(tmp_path / "dH_dtheta")
     ev, idx = exact_subset_mean(tmp_path / "dH_dtheta", 120, seed=7, tol=1e-14)
     assert idx.size == 120 and np.unique(idx).size == 120 and np.all(np.diff(idx) > 0)
