@@ -11,7 +11,7 @@ import sys
 COMMAND_MODULES: list[str] = [
     "crgpr.commands.simulate",
     "crgpr.report.paper",
-    "crgpr.discovery.selection",
+    "crgpr.commands.discovery",
     "crgpr.learning.prefilter",
     "crgpr.learning.gradient_models",
     "crgpr.learning.learned",

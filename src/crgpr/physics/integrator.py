@@ -11,6 +11,11 @@ One step of length dt, with M the lumped masses and F(q) the generalised forces:
 The conservative part is the symplectic Stormer-Verlet (velocity Verlet) scheme the paper
 uses; the dissipation R (linear: p <- exp(-c dt/2) p, quadratic drag: v <- v / (1 + k|v| dt/2))
 is applied by its exact flow, so it can only remove energy and is stable for any damping.
+The Kelvin-Voigt bending damping of the missing-physics library (m += c dkappa/dt, a stiff
+linear coupling of neighbouring angular rates) is part of D: its exact linear flow
+omega <- P(dt/2) omega (``kelvin_voigt_propagator``) follows the diagonal damping in the same
+half-step; both are exact flows of commuting linear ODEs (the rotational zeta rate is the same
+at every node), so D stays exact, passive and unconditionally stable.
 The scheme is symmetric and second order. The kinetic energy removed by D is accumulated as
 the dissipated energy.
 
@@ -76,9 +81,52 @@ def _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h):
     return lost
 
 
+# --- Kelvin-Voigt bending damping (missing-physics candidate ``internal_damping``) -------------
+def kelvin_voigt_propagator(c: float, ds: float, m_r: np.ndarray, free_rot: np.ndarray, h: float
+                            ) -> np.ndarray:
+    """Exact flow matrix P(h) of d omega/dt = -M_r^-1 K omega over a time h.
+
+    K = (c / ds) D^T D with D the (N, N+1) difference matrix, i.e. the nodal couples of the
+    segment moments m_j = c (omega_{j+1} - omega_j) / ds (Rayleigh dissipation
+    sum_j ds c kappa_dot_j^2 >= 0). Restricted to the free rotational DOFs (a clamped base
+    rate stays 0). P = M^-1/2 U exp(-h L) U^T M^1/2 with S = M^-1/2 K M^-1/2 = U L U^T, so P
+    is a contraction in the kinetic-energy norm for any h (passive, unconditionally stable).
+    Returns an (N+1, N+1) matrix; an empty (0, 0) array for c = 0 (no damping).
+    """
+    n = m_r.size
+    if c <= 0.0:
+        return np.zeros((0, 0))
+    D = np.diff(np.eye(n), axis=0)
+    K = (c / ds) * D.T @ D
+    f = np.nonzero(np.asarray(free_rot) > 0)[0]
+    P = np.zeros((n, n))
+    ms = np.sqrt(m_r[f])
+    S = K[np.ix_(f, f)] / np.outer(ms, ms)
+    lam, U = np.linalg.eigh(0.5 * (S + S.T))
+    P[np.ix_(f, f)] = (U * np.exp(-h * np.maximum(lam, 0.0))) @ U.T / ms[:, None] * ms[None, :]
+    return P
+
+
+@njit(cache=True)
+def _kv_damp(v, m_r, P):
+    """Apply the Kelvin-Voigt flow omega <- P omega; returns the rotational energy removed [J]."""
+    n = v.shape[0]
+    w = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += P[i, k] * v[k, 2]
+        w[i] = acc
+    lost = 0.0
+    for i in range(n):
+        lost += 0.5 * m_r[i] * (v[i, 2] ** 2 - w[i] ** 2)
+        v[i, 2] = w[i]
+    return lost
+
+
 @njit(cache=True)
 def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kappa0,
-                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, out_q, out_v, out_d):
+                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, out_q, out_v, out_d, kv):
     """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step."""
     n = q.shape[0]
     F = np.zeros((n, 3))
@@ -88,8 +136,11 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
     out_v[0] = v
     out_d[0] = 0.0
     h = 0.5 * dt
+    use_kv = kv.shape[0] > 0
     for k in range(1, n_steps + 1):
         diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if use_kv:
+            diss += _kv_damp(v, m_r, kv)
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
@@ -103,6 +154,8 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
             v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
         diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if use_kv:
+            diss += _kv_damp(v, m_r, kv)
         if k % every == 0:
             r = k // every
             bad = False
@@ -124,11 +177,14 @@ def _locate_failure(q: np.ndarray, v: np.ndarray) -> int:
     return int(rows[0]) if rows.size else -1
 
 
-def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every):
+def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
+            kv: np.ndarray | None = None):
     """Integrate the analytic rod. ``rod_args`` are the trailing arguments of the force kernel.
 
-    ``grav_force`` is the nodal y-force of gravity (-m_i g). Raises SimulationDiverged.
+    ``grav_force`` is the nodal y-force of gravity (-m_i g). ``kv``: Kelvin-Voigt flow matrix
+    over dt/2 (``kelvin_voigt_propagator``; None: no internal damping). Raises SimulationDiverged.
     """
+    kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")
     v = np.array(v0, dtype=float, order="C") * free
@@ -136,7 +192,7 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     out_v = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     status = _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, *rod_args,
-                         dt, n_steps, every, out_q, out_v, out_d)
+                         dt, n_steps, every, out_q, out_v, out_d, kv)
     if status >= 0:
         node = _locate_failure(q, v)
         t_fail = status * dt
@@ -162,6 +218,7 @@ def run_generic(
     every: int,
     k_quad: np.ndarray | None = None,
     what: str = "rollout",
+    kv: np.ndarray | None = None,
 ) -> Integration:
     """Same scheme as ``run_rod`` for any nodal force function ``force(q) -> (N+1, 3)``.
 
@@ -181,13 +238,18 @@ def run_generic(
     h = 0.5 * dt
     Fq = force(q)
     diss = 0.0
+    kv = None if kv is None or kv.shape[0] == 0 else np.ascontiguousarray(kv, dtype=float)
     for k in range(1, n_steps + 1):
         diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if kv is not None:
+            diss += _kv_damp(v, m_r, kv)
         v += h * Fq * minv
         q += dt * v
         Fq = force(q)
         v += h * Fq * minv
         diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if kv is not None:
+            diss += _kv_damp(v, m_r, kv)
         if k % every == 0:
             r = k // every
             if not (np.all(np.isfinite(v)) and np.all(np.abs(v) < MAX_SPEED)):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from crgpr.physics.integrator import Integration, run_rod
+from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
 
@@ -82,6 +82,8 @@ def simulate(
         q_init, v_init, free_mask(params), m_t, m_r, lam_t, lam_r, k_quad, grav,
         rod_kernel_args(params, float(q_init[0, 2])), settings.dt, settings.n_steps,
         settings.record_every,
+        kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
+                                   0.5 * settings.dt),
     )
     p = out.v.copy()
     p[..., 0] *= params.rhoA
@@ -100,7 +102,7 @@ def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     """Total energy H (kinetic + elastic + gravity + base spring) and dissipation rate per t.
 
     dissipation_rate = H_z^T R H_z integrated over the rod (paper Sec. V, E(t)), with the
-    drag effects added when present.
+    drag effects and the Kelvin-Voigt term sum_j ds c kappa_dot_j^2 added when present.
     """
     pr = traj.params
     m_t, m_r = masses(pr)
@@ -114,6 +116,7 @@ def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     rate = ((pr.zeta + pr.viscous_drag) * wds * speed2).sum(axis=-1)
     rate += (pr.zeta * wds * v[..., 2] ** 2).sum(axis=-1)
     rate += (pr.air_drag * wds * speed2**1.5).sum(axis=-1)
+    rate += pr.internal_damping / pr.ds * (np.diff(v[..., 2], axis=-1) ** 2).sum(axis=-1)
     return {"H": ke + ve + pe_g, "kinetic": ke, "elastic": ve, "gravity": pe_g,
             "dissipation_rate": rate}
 
