@@ -33,6 +33,7 @@ include: "workflow/rules/rollout.smk"
 include: "workflow/rules/uq.smk"
 include: "workflow/rules/discovery.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/oracle.smk"
 
 
 rule all:

@@ -95,6 +95,8 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
         "table4_ablation.csv": [], "baselines.csv": [], "uq_coverage.csv": ["angle", "theta_coverage"],
         "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
+        "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
+        "oracle_exact_gap.csv": ["theta0_deg", "dtc_minus_exact_over_std", "exact_rmse_over_std"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
                                       "verdict"],
     }.items():
