@@ -15,7 +15,7 @@ from crgpr.learning.gradient_models import (
     PAPER_MODELS,
     train_model,
 )
-from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
+from crgpr.learning.prefilter import fd_prefilter, prefiltered_arrays
 from crgpr.physics.rod import strains, variational_derivative
 from crgpr.physics.simulate import simulate
 from crgpr.report.hyperparameters import table2
@@ -28,7 +28,7 @@ def smoke(tmp_path_factory):
     cfg = load_config(SMOKE)
     traj = simulate(85.0, rod_params(cfg), sim_settings(cfg))
     d = tmp_path_factory.mktemp("gm")
-    df, _ = fd_prefilter(traj, PrefilterSettings.from_config(cfg))
+    df, _ = fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
     df.to_parquet(d / "fd85.parquet")
     return cfg, traj, d
 

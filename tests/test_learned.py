@@ -12,7 +12,7 @@ import pytest
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.learning.gradient_models import train_model
 from crgpr.learning.learned import LearnedRod, learned_energy, rollout, run_rollout
-from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter
+from crgpr.learning.prefilter import fd_prefilter
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, node_weights, straight_rod
@@ -57,7 +57,7 @@ def trained(tmp_path_factory):
     P, S = rod_params(cfg), sim_settings(cfg)
     traj = simulate(85.0, P, S)
     d = tmp_path_factory.mktemp("learned")
-    df, _ = fd_prefilter(traj, PrefilterSettings.from_config(cfg))
+    df, _ = fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
     df.to_parquet(d / "fd85.parquet")
     for name in ("q_x", "q_y", "dH_dtheta", "dH_dp_x", "dH_dp_y", "dH_dp_theta", "obj_n1", "obj_n2", "obj_m"):
         train_model(cfg, name, d / "fd85.parquet", d / name, "fd")

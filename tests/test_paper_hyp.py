@@ -13,7 +13,7 @@ from crgpr.gp.exact import ExactMean
 from crgpr.learning.features import theta_center
 from crgpr.learning.gradient_models import PAPER_MODELS, paper_hyperparameters, training_data
 from crgpr.learning.learned import LearnedRod, rollout
-from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
+from crgpr.learning.prefilter import fd_prefilter, prefiltered_arrays
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate
 
@@ -32,7 +32,7 @@ def test_paper_hyp_model_loads_and_rolls_out_on_smoke(tmp_path):
     cfg = load_config(SMOKE)
     P = rod_params(cfg)
     traj = simulate(85.0, P, sim_settings(cfg))
-    df, _ = fd_prefilter(traj, PrefilterSettings.from_config(cfg))
+    df, _ = fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
     arr = prefiltered_arrays(df)
     center = theta_center(arr["theta"])
     comps = {}

@@ -34,7 +34,7 @@ def smoke():
 def test_gp_and_fd_prefilter_recover_true_derivatives(smoke):
     cfg, traj = smoke
     st = PrefilterSettings.from_config(cfg)
-    for df, _ in (gp_prefilter(traj, st, seed=1), fd_prefilter(traj, st)):
+    for df, _ in (gp_prefilter(traj, st, seed=1), fd_prefilter(traj, st.n_t_out)):
         assert list(df.columns) == list(PREFILTER_COLUMNS)
         a = prefiltered_arrays(df)
         idx = np.searchsorted(traj.t, a["t"])

@@ -20,15 +20,14 @@ from crgpr.seeds import stage_seed
 def prefilter(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -> None:
     """Rule ``prefilter``: smooth one ground-truth trajectory, write E with its metadata."""
     params = rod_params(cfg)
-    if method == "fd":  # central differences use only the output grid size
-        settings = pf.PrefilterSettings(n_t_out=int(cfg["prefilter"]["n_t_out"]))
-        seed = None
-    else:
-        settings = pf.PrefilterSettings.from_config(cfg)
-        seed = stage_seed(cfg["seed"], "prefilter", int(angle))
     traj = trajectory_from_frame(read_parquet(gt, required=TRAJECTORY_COLUMNS), params)
     t0 = time.perf_counter()
-    df, meta = pf.prefilter(traj, method, settings, seed or 0)
+    if method == "fd":  # central differences use only the output grid size
+        seed = None
+        df, meta = pf.fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
+    else:
+        seed = stage_seed(cfg["seed"], "prefilter", int(angle))
+        df, meta = pf.prefilter(traj, method, pf.PrefilterSettings.from_config(cfg), seed)
     meta.update({"kind": "prefilter", "theta0_deg": angle, "source": str(gt),
                  "seconds": time.perf_counter() - t0, "rod": params.to_dict()})
     if seed is not None:

@@ -123,7 +123,7 @@ def _frame(traj: Trajectory, t: np.ndarray, z: np.ndarray, d1: np.ndarray, d2: n
     return pd.DataFrame(cols)
 
 
-def fd_prefilter(traj: Trajectory, settings: PrefilterSettings) -> tuple[pd.DataFrame, dict[str, Any]]:
+def fd_prefilter(traj: Trajectory, n_t_out: int) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Central finite differences in time on the full recorded data (ablation, Table V)."""
     z = traj.z
     t = traj.t
@@ -141,7 +141,7 @@ def fd_prefilter(traj: Trajectory, settings: PrefilterSettings) -> tuple[pd.Data
     d2[1:-1] = (z[2:] - 2 * z[1:-1] + z[:-2]) / h**2
     d2[0] = (2 * z[0] - 5 * z[1] + 4 * z[2] - z[3]) / h**2 if len(t) > 3 else d2[1]
     d2[-1] = (2 * z[-1] - 5 * z[-2] + 4 * z[-3] - z[-4]) / h**2 if len(t) > 3 else d2[-2]
-    idx = output_indices(len(t), settings.n_t_out)
+    idx = output_indices(len(t), n_t_out)
     meta = {"method": "fd", "dt_data_s": h, "n_t_out": int(idx.size)}
     return _frame(traj, t[idx], z[idx], d1[idx], d2[idx]), meta
 
@@ -207,7 +207,7 @@ def prefilter(traj: Trajectory, method: str, settings: PrefilterSettings, seed: 
     if method == "gp":
         return gp_prefilter(traj, settings, seed)
     if method == "fd":
-        return fd_prefilter(traj, settings)
+        return fd_prefilter(traj, settings.n_t_out)
     raise ValueError(f"unknown prefilter method {method!r}; expected one of {METHODS}")
 
 
