@@ -31,6 +31,7 @@ include: "workflow/rules/rollouts.smk"
 include: "workflow/rules/metrics.smk"
 include: "workflow/rules/uq.smk"
 include: "workflow/rules/discovery.smk"
+include: "workflow/rules/camera.smk"
 include: "workflow/rules/paper.smk"
 
 

@@ -16,6 +16,7 @@ COMMAND_MODULES: list[str] = [
     "crgpr.learning.gradient_models",
     "crgpr.learning.learned",
     "crgpr.report.metrics",
+    "crgpr.commands.learn",
 ]
 
 
