@@ -2,6 +2,8 @@
 # training trajectory (positions only, noise, the camera's frame rate), `crgpr learn` on it,
 # method cr_gpr_objective_camera on the test angles, and the noise ablation the paper claims.
 
+import copy
+
 CAM = config["camera"]
 CAM_ABL = CAM["ablation"]
 CAM_TRAIN = config["angles"]["train_deg"]
@@ -10,10 +12,18 @@ CAM_METHOD = "cr_gpr_objective_camera"
 ROLLOUT_METHODS.append(CAM_METHOD)
 _CAM_CELLS = [(f"{n:g}", p, f) for n in CAM_ABL["noise_mm"] for p in CAM_ABL["prefilters"]
               for f in CAM_ABL["features"]]
-# the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn)
-_LEARN_CFG = {"seed": config["seed"], "rod": config["rod"],
-              "discovery": {k: config["discovery"][k] for k in ("min_rate_hz", "min_samples")},
-              "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]}}
+# the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn);
+# the ablation cells train on fewer frames and points (camera.ablation.n_t_out, n_train_max)
+_LEARN_CFG = {
+    "main": {"seed": config["seed"], "rod": config["rod"],
+             "discovery": {k: config["discovery"][k] for k in ("min_rate_hz", "min_samples")},
+             "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]}},
+}
+_LEARN_CFG["ablation"] = copy.deepcopy(_LEARN_CFG["main"])
+_LEARN_CFG["ablation"]["camera"]["learn"]["n_t_out"] = CAM_ABL["n_t_out"]
+for _group in ("models", "objective_models"):
+    for _spec in _LEARN_CFG["ablation"]["gradient_models"][_group].values():
+        _spec["n_train"] = min(_spec["n_train"], CAM_ABL["n_train_max"])
 
 
 rule camera_data:
@@ -46,17 +56,18 @@ rule camera_learn:
         code=code_closure("camera_learn.py"),
         measured=f"{RESULTS}/camera/data/{CAM_TRAIN}_{{noise}}mm.parquet",
     output:
-        directory(f"{RESULTS}/camera/models/{{noise}}mm_{{prefilter}}_{{features}}"),
+        directory(f"{RESULTS}/camera/models/{{set}}/{{noise}}mm_{{prefilter}}_{{features}}"),
     wildcard_constraints:
+        set="main|ablation",
         noise=r"[0-9.]+",
         prefilter="gp|fd",
         features="paper|objective",
     params:
-        cfg=_LEARN_CFG,
+        cfg=lambda wc: _LEARN_CFG[wc.set],
     log:
-        "logs/camera/learn_{noise}mm_{prefilter}_{features}.log",
+        "logs/camera/learn_{set}_{noise}mm_{prefilter}_{features}.log",
     benchmark:
-        "benchmarks/camera/learn_{noise}mm_{prefilter}_{features}.tsv"
+        "benchmarks/camera/learn_{set}_{noise}mm_{prefilter}_{features}.tsv"
     threads: 1
     resources:
         mem_mb=3000,
@@ -70,7 +81,7 @@ rule camera_learn:
 rule camera_rollout:
     input:
         code=code_closure("camera_rollout.py"),
-        models=f"{RESULTS}/camera/models/{CAM_NOISE}mm_{CAM['method']['prefilter']}_{CAM['method']['features']}",
+        models=f"{RESULTS}/camera/models/main/{CAM_NOISE}mm_{CAM['method']['prefilter']}_{CAM['method']['features']}",
     output:
         traj=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}.parquet",
         energy=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}_energy.parquet",
@@ -95,7 +106,7 @@ rule camera_rollout:
 rule camera_ablation_cell:
     input:
         code=code_closure("camera_ablation_cell.py"),
-        models=f"{RESULTS}/camera/models/{{noise}}mm_{{prefilter}}_{{features}}",
+        models=f"{RESULTS}/camera/models/ablation/{{noise}}mm_{{prefilter}}_{{features}}",
         gts=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=CAM_ABL["angles_deg"]),
     output:
         f"{RESULTS}/camera/ablation/{{noise}}mm_{{prefilter}}_{{features}}.json",

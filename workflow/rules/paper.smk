@@ -49,6 +49,7 @@ rule paper_tables:
         hyper=f"{RESULTS}/tables/table2_hyperparameters.csv",
         timing=f"{RESULTS}/metrics/timing.parquet",
         uq=f"{RESULTS}/tables/uq_coverage.csv",
+        noise=f"{RESULTS}/tables/noise_ablation.csv",
     output:
         csv=report(
             f"{RESULTS}/tables/paper_vs_reproduction.csv",

@@ -40,6 +40,7 @@ class Sources:
     hyper: pd.DataFrame | None = None
     timing: pd.DataFrame | None = None
     uq: pd.DataFrame | None = None
+    noise: pd.DataFrame | None = None  # results/tables/noise_ablation.csv (issue 14)
 
 
 def load_values(path: str | Path) -> dict[str, Any]:
@@ -83,9 +84,15 @@ def resolve(ref: str, src: Sources) -> float:
         if kind == "uq" and src.uq is not None:
             key, col = parts
             return _mean_or_angle(src.uq, "angle", key, col)
+        if kind == "noise" and src.noise is not None:
+            noise_mm, prefilter, features, col = parts
+            d = src.noise
+            row = d[np.isclose(d["noise_mm"].astype(float), float(noise_mm)) & (d["prefilter"] == prefilter)
+                    & (d["features"] == features)]
+            return float(row[col].iloc[0]) if not row.empty and col in row else math.nan
     except (KeyError, ValueError, IndexError):
         return math.nan
-    if kind not in {"accuracy", "hyper", "timing", "uq"}:
+    if kind not in {"accuracy", "hyper", "timing", "uq", "noise"}:
         raise ValueError(f"unknown reference kind in {ref!r}")
     return math.nan
 
@@ -288,13 +295,15 @@ def _maybe(path: str | None, reader) -> pd.DataFrame | None:
 
 
 def build(values_path: str, accuracy: str | None, hyper: str | None, timing: str | None,
-          uq: str | None, out_csv: str, out_md: str, out_claims: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+          uq: str | None, out_csv: str, out_md: str, out_claims: str,
+          noise: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Entry point of rule ``paper_tables``: write the comparison (csv, md) and the claims csv."""
     src = Sources(
         accuracy=_maybe(accuracy, read_parquet),
         hyper=_maybe(hyper, pd.read_csv),
         timing=_maybe(timing, read_parquet),
         uq=_maybe(uq, pd.read_csv),
+        noise=_maybe(noise, pd.read_csv),
     )
     values = load_values(values_path)
     qt = compare_quantities(values, src)
@@ -317,4 +326,4 @@ def _cli(args: argparse.Namespace) -> None:
     build(args.values, str(r / "metrics/accuracy.parquet"), str(r / "tables/table2_hyperparameters.csv"),
           str(r / "metrics/timing.parquet"), str(r / "tables/uq_coverage.csv"),
           str(r / "tables/paper_vs_reproduction.csv"), str(r / "tables/paper_vs_reproduction.md"),
-          str(r / "tables/paper_claims.csv"))
+          str(r / "tables/paper_claims.csv"), str(r / "tables/noise_ablation.csv"))
