@@ -22,8 +22,8 @@ from crgpr.report.metrics import accuracy
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "tests" / "smoke_config.yaml"
-SETTINGS = camera.LearnSettings(gp_max_points=1500, hyper_points=80, spatial_smoothing=True,
-                                edge_trim_s=0.02, n_t_out=1000)
+# camera.learn of config.yaml (the position GP's hyperparameters are searched on 120 frames)
+SETTINGS = camera.LearnSettings.from_config(load_config(ROOT / "config.yaml")["camera"]["learn"])
 
 
 @pytest.fixture(scope="module")

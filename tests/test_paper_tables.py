@@ -77,7 +77,8 @@ def test_committed_tables_are_regenerated_by_current_code(tmp_path):
                                          ("claims", "paper_claims.csv")]}
     build(str(VALUES), str(RES / "metrics" / "accuracy.parquet"),
           str(TABLES / "table2_hyperparameters.csv"), str(RES / "metrics" / "timing.parquet"),
-          str(TABLES / "uq_coverage.csv"), str(outs["csv"]), str(outs["md"]), str(outs["claims"]))
+          str(TABLES / "uq_coverage.csv"), str(outs["csv"]), str(outs["md"]), str(outs["claims"]),
+          noise=str(TABLES / "noise_ablation.csv"))
     for path in outs.values():
         committed = (TABLES / path.name).read_bytes()
         assert path.read_bytes() == committed, f"{path.name} differs from the committed table"
