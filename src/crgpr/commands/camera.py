@@ -135,7 +135,7 @@ def _ablation_figure(df: pd.DataFrame, out: str) -> None:
         t_end = float(df[df["features"] == f]["t_end_s"].iloc[0])
         ax.set_title(f"features '{f}' ({t_end:g} s rollouts)")
         ax.legend(fontsize=8)
-    fig.suptitle("Noise ablation: learned from positions only (85 deg camera data)")
+    fig.suptitle("Noise ablation: learned from camera positions only", fontsize=10)
     with atomic_path(out, ".png") as tmp:
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
