@@ -3,9 +3,10 @@
     snakemake -j2 all                     # the paper, with config.yaml
     snakemake -j2 all --configfile tests/smoke_config.yaml    # tiny smoke run
 
-Rules live in workflow/rules/, one file per pipeline stage; each writes Parquet under
-results/. Library code is in src/crgpr; every rule lists the modules it uses as inputs
-so that editing them reruns what depends on them.
+Rules live in workflow/rules/<stage>.smk, one file per pipeline stage; rule X runs
+workflow/scripts/X.py, which calls crgpr.commands.<stage>.X. Each rule declares the config
+values its output depends on as params (a change reruns it and its dependants) and the
+library files its script imports as inputs (an edit reruns it); see ARCHITECTURE.md.
 """
 
 from snakemake.utils import min_version, validate
@@ -23,16 +24,16 @@ from crgpr.config import check_config  # noqa: E402
 check_config(config, "config")
 
 include: "workflow/rules/common.smk"
-include: "workflow/rules/ground_truth.smk"
-include: "workflow/rules/baselines.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/blackbox.smk"
+include: "workflow/rules/pinn.smk"
 include: "workflow/rules/prefilter.smk"
 include: "workflow/rules/models.smk"
-include: "workflow/rules/rollouts.smk"
-include: "workflow/rules/metrics.smk"
+include: "workflow/rules/rollout.smk"
 include: "workflow/rules/uq.smk"
 include: "workflow/rules/discovery.smk"
 include: "workflow/rules/camera.smk"
-include: "workflow/rules/paper.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:

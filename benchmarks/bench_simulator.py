@@ -1,4 +1,4 @@
-"""Benchmark: compute time of one 2 s ground-truth trajectory in-process (issue 2 target 0.3 s).
+"""Benchmark: compute time of one 2 s ground-truth trajectory in-process (target 0.3 s).
 
     python benchmarks/bench_simulator.py [--repeats 20]
 

@@ -1,4 +1,4 @@
-"""Black-box GP baseline (issue 4): features, fit, Verlet rollout, divergence record."""
+"""Black-box GP baseline (paper Sec. V): features, fit, Verlet rollout, divergence record."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from crgpr.baselines import blackbox
+from crgpr.commands.blackbox import blackbox_rollout, blackbox_train
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata, read_parquet, write_parquet
 from crgpr.learning.prefilter import PrefilterSettings, prefilter
@@ -29,7 +30,7 @@ def trained(tmp_path_factory):
     d = tmp_path_factory.mktemp("bb")
     pre = d / "pre.parquet"
     write_parquet(df, pre)
-    blackbox.rule_train(cfg, str(pre), str(d / "models"), str(d / "summary.json"))
+    blackbox_train(cfg, str(pre), str(d / "models"), str(d / "summary.json"))
     return cfg, d
 
 
@@ -59,7 +60,7 @@ def test_blackbox_trains_and_rolls_out_on_the_smoke_config(trained, tmp_path):
     np.testing.assert_allclose(gps[0].predict(X), X[:, 6] / params.rhoA, rtol=0.05, atol=0.02)
     angle = cfg["angles"]["test_deg"][0]
     out = tmp_path / f"{angle}.parquet"
-    blackbox.rule_rollout(cfg, str(d / "models"), str(d / "summary.json"), angle, str(out))
+    blackbox_rollout(cfg, str(d / "models"), str(d / "summary.json"), angle, str(out))
     df = read_parquet(out, required=TRAJECTORY_COLUMNS)
     n_t = sim_settings(cfg).n_records
     assert len(df) == n_t * (params.N + 1)
@@ -76,13 +77,20 @@ def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):
     gps = blackbox.load_models(d / "models")
     params = rod_params(cfg)
 
-    def runaway(self, X, which):
-        out = np.zeros((X.shape[0], len(which)))
-        if which[0] == 0:  # learned tip velocity runs away: 50 m/s along x
-            out[-1, 0] = 50.0
-        return out
+    class Runaway:
+        """The learned tip velocity runs away: 50 m/s along x (evaluator k = 0 is dx/dt)."""
 
-    monkeypatch.setattr(blackbox.FastMean, "__call__", runaway)
+        def __init__(self, k: int):
+            self.k = k
+
+        def __call__(self, X):
+            out = np.zeros(X.shape[0])
+            if self.k == 0:
+                out[-1] = 50.0
+            return out
+
+    ks = iter(range(len(gps)))
+    monkeypatch.setattr(blackbox.KernelMean, "exact", staticmethod(lambda gp: Runaway(next(ks))))
     settings = SimSettings(dt=1e-4, t_end=0.2, record_every=5)
     t, q, p, info = blackbox.rollout(gps, 60.0, params, settings)
     assert info["diverged"] and info["node_diverged"] == params.N

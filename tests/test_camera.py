@@ -10,9 +10,10 @@ import pandas as pd
 import pytest
 
 from crgpr.cli import main
+from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn, load_learned, read_manifest
 from crgpr.config import load_config, rod_params
-from crgpr.discovery.measured import camera_frame, validate_frame
+from crgpr.discovery.measured import ScreenSettings, validate_frame
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
@@ -24,6 +25,12 @@ ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "tests" / "smoke_config.yaml"
 # camera.learn of config.yaml (the position GP's hyperparameters are searched on 120 frames)
 SETTINGS = camera.LearnSettings.from_config(load_config(ROOT / "config.yaml")["camera"]["learn"])
+SCREEN = ScreenSettings.from_config(load_config(ROOT / "config.yaml")["discovery"])
+
+
+def _meas(df, P):
+    """The measured-data loader on the node grid of ``P`` (s = node * ds)."""
+    return validate_frame(df, "sim", P.L0, P.ds, SCREEN)
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +44,7 @@ def test_theta_and_momenta_from_positions_match_the_simulator(sim, prefilter):
     """Noise-free positions: theta within the shear and stencil error of the shear-free
     reconstruction; momenta from the nominal mass distribution match the simulator's."""
     P = sim.params
-    meas = validate_frame(camera_frame(sim.t, sim.q, 0.0, np.random.default_rng(0)), "sim")
+    meas = _meas(camera_frame(sim.t, sim.q, 0.0, np.random.default_rng(0)), P)
     arr, rep = camera.positions_to_state(meas, P, prefilter, SETTINGS, seed=1)
     idx = np.searchsorted(sim.t, arr["t"] - 1e-12)
     assert np.allclose(sim.t[idx], arr["t"])
@@ -61,7 +68,7 @@ def test_theta_and_momenta_from_positions_match_the_simulator(sim, prefilter):
 
 
 def test_gp_noise_level_is_estimated_from_the_data(sim):
-    meas = validate_frame(camera_frame(sim.t, sim.q, 1e-3, np.random.default_rng(3)), "sim")
+    meas = _meas(camera_frame(sim.t, sim.q, 1e-3, np.random.default_rng(3)), sim.params)
     _, rep = camera.positions_to_state(meas, sim.params, "gp", SETTINGS, seed=1)
     assert rep["noise_std_m_estimated"] == pytest.approx(1e-3, rel=0.2)
 
@@ -124,7 +131,7 @@ def _bad(tmp_path, df, name="bad.parquet"):
 @pytest.mark.parametrize("mutate, message", [
     (lambda d: d.drop(columns="y"), "missing column"),
     (lambda d: d.assign(x=d["x"].where(d.index != 5)), "NaN"),
-    (lambda d: d[d["t"] < 0.02], "time samples"),
+    (lambda d: d[d["t"] < 0.02], "frames with data"),
     (lambda d: d.assign(t=d["t"] * 3.0), "below the minimum"),
     (lambda d: d.assign(p_x=0.0, theta=0.0), "full-state file needs"),
     (lambda d: d.assign(theta=0.0, p_x=0.0, p_y=0.0, p_theta=np.where(d.index == 3, np.nan, 0.0)),
@@ -154,7 +161,7 @@ def test_finer_simulator_data(tmp_path):
     fine = RodParams(N=50)
     tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80))
     for stride, n in ((2, 25), (1, 50)):
-        df = camera_frame(tr.t, tr.q, 5e-4, np.random.default_rng(stride), node_stride=stride)
+        df = camera_frame(tr.t, tr.q[:, ::stride], 5e-4, np.random.default_rng(stride))
         path = _bad(tmp_path, df, f"fine_{n}.parquet")
         man = learn(path, tmp_path / f"m{n}", cfg, "objective", "gp")
         assert man["rod"]["N"] == n

@@ -1,7 +1,11 @@
-"""Configuration validation, CLI and Parquet I/O (issue 2: bad input fails clearly)."""
+"""Configuration validation, CLI and file I/O: bad input fails clearly (one line, exit 2)."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +14,16 @@ import pytest
 
 from crgpr.cli import main
 from crgpr.config import ConfigError, load_config, rod_params, sim_settings
-from crgpr.io import load_npz, read_metadata, read_parquet, write_npz, write_parquet
+from crgpr.io import (
+    OutputLocked,
+    atomic_dir,
+    load_npz,
+    read_metadata,
+    read_parquet,
+    write_json,
+    write_npz,
+    write_parquet,
+)
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
@@ -44,6 +57,10 @@ def test_default_config_is_the_paper():
         ({"angles": {"test_deg": [60, 85]}}, "angles.test_deg"),
         ({"simulation": {"record_every": 0}}, "simulation.record_every"),
         ({"typo_section": {}}, "typo_section"),
+        ({"rod": {"E": float("nan")}}, "rod.E"),
+        ({"rod": {"zeta": float("inf")}}, "rod.zeta"),
+        ({"prefilter": {"noise_var_min": float("nan")}}, "prefilter.noise_var_min"),
+        ({"simulation": {"t_end_s": 0.01, "dt_s": 3.0e-5}}, "simulation.t_end_s / simulation.dt_s"),
     ],
 )
 def test_bad_config_names_the_key(override, key):
@@ -109,3 +126,116 @@ def test_params_roundtrip():
     with pytest.raises(KeyError, match="unknown rod parameter"):
         RodParams.from_dict({"L": 1.0})
     assert SimSettings().n_steps == 20000
+
+
+def test_nan_in_the_config_file_is_rejected(tmp_path):
+    bad = tmp_path / "c.yaml"
+    bad.write_text(CONFIG.read_text().replace("E: 3.0e+6 ", "E: .nan "))
+    with pytest.raises(ConfigError, match=r"rod\.E: nan is not a finite number"):
+        load_config(bad)
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--set", "L0=-1"], "rod.L0"),
+        (["--set", "N=1"], "rod.N"),
+        (["--set", "N=0"], "rod.N"),
+        (["--set", "N=2.5"], "rod.N"),
+        (["--set", "r=-0.01"], "rod.r"),
+        (["--set", "E=nan"], "rod.E"),
+        (["--set", "tip_mass=-1"], "rod.tip_mass"),
+        (["--t-end", "0"], "simulation.t_end_s"),
+        (["--dt", "0"], "simulation.dt_s"),
+        (["--record-every", "0"], "simulation.record_every"),
+        (["--dt", "3e-5", "--t-end", "0.01"], "simulation.t_end_s / simulation.dt_s"),
+        (["--theta0", "nan"], "--theta0"),
+    ],
+)
+@pytest.mark.parametrize("with_config", [True, False])
+def test_cli_values_are_validated_like_the_config(tmp_path, capsys, monkeypatch, args, named, with_config):
+    """Every command-line value goes through the config's schema and checks: one line naming
+    the key, exit code 2, nothing written (with and without a config file)."""
+    monkeypatch.chdir(tmp_path)  # no ./config.yaml: the paper's defaults
+    out = tmp_path / "x.parquet"
+    argv = ["simulate", "--theta0", "85", "--out", str(out), *args]
+    argv += ["--config", str(CONFIG)] if with_config else []
+    if "--theta0" in args:
+        argv = argv[:1] + argv[3:]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err
+    assert err.count("\n") == 1 and err.startswith("crgpr simulate: error: ")
+    assert not out.exists()
+
+
+def test_cli_without_config_runs_the_papers_rod(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "r.parquet"
+    assert main(["simulate", "--theta0", "60", "--out", str(out), "--t-end", "0.01", "--dt", "1e-4",
+                 "--set", "base_spring=inf", "--set", "tip_mass=0.001"]) == 0
+    meta = read_metadata(out)
+    assert meta["rod"]["N"] == 25 and meta["rod"]["tip_mass"] == 0.001
+    assert meta["simulation"]["t_end"] == 0.01
+
+
+def test_output_files_get_the_usual_permissions(tmp_path):
+    expected = 0o666 & ~_umask()
+    write_parquet(pd.DataFrame({"a": [1.0]}), tmp_path / "a.parquet")
+    write_json({"a": 1}, tmp_path / "a.json")
+    write_npz(tmp_path / "a.npz", a=np.zeros(2))
+    for f in tmp_path.iterdir():
+        assert f.stat().st_mode & 0o777 == expected, f
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def test_atomic_dir_replaces_on_success_only_and_is_locked(tmp_path):
+    out = tmp_path / "models"
+    with atomic_dir(out) as d:
+        (d / "a.txt").write_text("one")
+        assert not out.exists()  # nothing visible before success
+    assert (out / "a.txt").read_text() == "one"
+    assert out.stat().st_mode & 0o777 == 0o777 & ~_umask()
+    with pytest.raises(RuntimeError, match="boom"), atomic_dir(out) as d:
+        (d / "a.txt").write_text("two")
+        raise RuntimeError("boom")
+    assert (out / "a.txt").read_text() == "one"  # the old result survives a failed run
+    with atomic_dir(out) as d:
+        (d / "b.txt").write_text("three")
+        with pytest.raises(OutputLocked, match="another run"), atomic_dir(out):
+            pass  # a second writer of the same directory fails at once
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["models"]  # no temporaries, no lock file
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(FileExistsError), atomic_dir(tmp_path / "file"):
+        pass
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="needs git")
+def test_code_version_marks_uncommitted_code(tmp_path):
+    repo = tmp_path / "repo"
+    shutil.copytree(ROOT / "src", repo / "src", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(repo / "src"), "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t",
+           "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
+    git = ["git", "-C", str(repo)]
+    subprocess.run([*git, "init", "-q"], check=True, env=env)
+    subprocess.run([*git, "add", "-A"], check=True, env=env)
+    subprocess.run([*git, "commit", "-qm", "x"], check=True, env=env)
+    probe = [sys.executable, "-c", "from crgpr.io import code_version; print(code_version())"]
+
+    def version() -> str:
+        return subprocess.run(probe, env=env, capture_output=True, text=True, check=True,
+                              cwd=tmp_path).stdout.strip()
+
+    clean = version()
+    assert clean.startswith("0.") and "+g" in clean and not clean.endswith(".dirty")
+    (repo / "results.csv").write_text("a run's output is not code\n")
+    assert version() == clean
+    io = repo / "src" / "crgpr" / "io.py"
+    io.write_text(io.read_text() + "\n# an uncommitted edit\n")
+    assert version() == clean + ".dirty"

@@ -1,4 +1,4 @@
-"""Stage 2 (crgpr.learning.features, .gradient_models): targets, training on the smoke config, files."""
+"""Step 3 (crgpr.learning.features, .gradient_models): targets, training on the smoke config, files."""
 
 from __future__ import annotations
 
@@ -9,19 +9,16 @@ import numpy as np
 import pytest
 
 from crgpr.config import load_config, rod_params, sim_settings
-from crgpr.gp import fit_gp
+from crgpr.gp import KernelMean, dtc_fit, fit_gp, load_evaluator
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import (
     PAPER_MODELS,
-    _gp_like,
-    dtc_fit,
-    dtc_predict,
-    table2,
     train_model,
 )
 from crgpr.learning.prefilter import PrefilterSettings, fd_prefilter, prefiltered_arrays
 from crgpr.physics.rod import strains, variational_derivative
 from crgpr.physics.simulate import simulate
+from crgpr.report.hyperparameters import table2
 
 SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
@@ -85,9 +82,10 @@ def test_dtc_approximates_exact_mean():
     gp = fit_gp(X, y, kernel="se", ard=True, basis="pure_quadratic",
                 fixed={"sigma_f": 1.0, "lengthscales": [0.6, 0.8], "sigma_n": 0.05})
     V = ((y - gp.y_mean[0]) / gp.y_scale[0])[:, None]
-    like = _gp_like(gp, dtc_fit(gp, X, V, 80, 0))
+    a = dtc_fit(gp, X, V, 80, 0)
+    like = KernelMean.dtc(gp, a["dtc_Z"], a["dtc_w"], a["dtc_beta"])
     Xs = rng.uniform(-1, 1, size=(200, 2))
-    err = dtc_predict(like, Xs) - gp.predict(Xs)
+    err = like(Xs) - gp.predict(Xs)
     assert np.sqrt(np.mean(err**2)) < 0.02 * np.std(y)
 
 
@@ -108,12 +106,10 @@ def test_train_models_on_smoke_prefilter(smoke, tmp_path):
     assert metas[0]["theta_center"] is not None and metas[2]["theta_center"] is not None
     # the objective n1 model recovers the axial stiffness EA = dn1/dnu1 from data alone
     P = rod_params(cfg)
-    from crgpr.learning.learned import Approx
-
-    n1 = Approx(tmp_path / "obj_n1")
+    n1 = load_evaluator(tmp_path / "obj_n1")
     slope = (n1(np.array([[1.001, 0.0, 0.0]])) - n1(np.array([[0.999, 0.0, 0.0]])))[0] / 0.002
     assert slope == pytest.approx(P.EA, rel=0.1)
-    df = table2([tmp_path / f"{n}.json" for n in ("q_x", "dH_dp_x")], tmp_path / "t2.csv")
+    df = table2([tmp_path / f"{n}.json" for n in ("q_x", "dH_dp_x")])
     assert {"sigma_f", "lengthscales", "sigma_n", "n", "paper_sigma_f", "paper_n"} <= set(df.columns)
     assert df.loc[df["model"] == "q_x", "paper_n"].iloc[0] == 7910
     assert set(PAPER_MODELS) >= set(df["model"])

@@ -1,4 +1,4 @@
-"""Stage 3 (crgpr.learning.learned, integrator.run_hamiltonian): the learned-model rollout."""
+"""Step 4 (crgpr.learning.learned, integrator.run_hamiltonian): the learned-model rollout."""
 
 from __future__ import annotations
 

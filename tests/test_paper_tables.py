@@ -1,4 +1,4 @@
-"""Table-diff tests against the committed results of the full run (issue 7).
+"""Table-diff tests against the committed results of the full run.
 
 They read the regenerated tables and the paper's values (workflow/paper_values.yaml) and check
 each declared tolerance and claim, printing a readable side-by-side diff when one fails.

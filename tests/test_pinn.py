@@ -1,4 +1,4 @@
-"""PINN baselines (issue 4): physics residual of eq. (ph-compact), constraints, smoke training."""
+"""PINN baselines (paper Sec. V): physics residual of eq. (9) (Sec. III-A), constraints, smoke training."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from crgpr.baselines import pinn
+from crgpr.commands.pinn import pinn_rollout, pinn_train
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_parquet, write_parquet
 from crgpr.physics.params import RodParams
@@ -153,7 +154,7 @@ def test_each_pinn_trains_and_predicts_on_the_smoke_config(smoke_data, tmp_path,
     cfg, paths = smoke_data
     data = {a: paths[a] for a in pinn.variant_angles(cfg, variant)}
     w, h = tmp_path / f"{variant}.pt", tmp_path / f"{variant}_loss.parquet"
-    pinn.rule_train(cfg, variant, data, str(w), str(h))
+    pinn_train(cfg, variant, data, str(w), str(h))
     hist = read_parquet(h, required=["iteration", "loss", "loss_momentum", "loss_data"])
     assert hist["iteration"].iloc[-1] == cfg["baselines"]["pinn"]["iterations"]
     assert np.all(np.isfinite(hist["loss"]))
@@ -164,7 +165,7 @@ def test_each_pinn_trains_and_predicts_on_the_smoke_config(smoke_data, tmp_path,
     assert all(isinstance(v, torch.Tensor) for v in state.values())
     angle = cfg["angles"]["test_deg"][0]
     out = tmp_path / f"{angle}.parquet"
-    pinn.rule_predict(cfg, variant, str(w), paths[angle], angle, str(out))
+    pinn_rollout(cfg, variant, str(w), paths[angle], angle, str(out))
     pred = read_parquet(out, required=TRAJECTORY_COLUMNS)
     gt = read_parquet(paths[angle])
     assert list(pred.columns) == list(TRAJECTORY_COLUMNS)

@@ -1,4 +1,4 @@
-"""Stage 1 prefilter (crgpr.learning.prefilter) on the smoke configuration and synthetic series."""
+"""Step 2 prefilter (crgpr.learning.prefilter) on the smoke configuration and synthetic series."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from crgpr.commands.prefilter import prefilter as rule
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_metadata
 from crgpr.learning.prefilter import (
@@ -15,7 +16,6 @@ from crgpr.learning.prefilter import (
     fd_prefilter,
     gp_prefilter,
     prefiltered_arrays,
-    rule,
     smooth_series,
     spatial_derivatives,
 )

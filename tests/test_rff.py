@@ -8,17 +8,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crgpr.gp import fit_gp
+from crgpr.gp import GP, fit_gp
 from crgpr.gp.sampling import (
     CompressedSamples,
-    GPSpec,
     compress,
     compression_error,
     draw_rff,
     exact_posterior,
+    inducing_indices,
     pathwise_covariance,
     pathwise_samples,
-    pivoted_cholesky_inducing,
     posterior_from_gp,
     sparse_posterior,
     weight_space_samples,
@@ -32,7 +31,7 @@ def _problem(basis: str, ard: bool, seed: int = 0, n: int = 120):
     y = 4.0 * np.sin(1.5 * X[:, 0]) + 0.3 * X[:, 1] ** 2 + 0.1 * rng.standard_normal(n)
     mu, sd = X.mean(0), X.std(0)
     ell = [0.6, 0.9] if ard else [0.7, 0.7]
-    spec = GPSpec((X - mu) / sd, (y - y.mean()) / y.std(), 1.1, ell, 0.05, basis, mu, sd,
+    spec = GP.from_standardised((X - mu) / sd, (y - y.mean()) / y.std(), 1.1, ell, 0.05, basis, mu, sd,
                   float(y.mean()), float(y.std()))
     # test inputs: inside the data, at its edge and outside it (prior reversion)
     xt = np.vstack([X[:3] + 0.05, rng.uniform(-3.0, 3.0, (9, 2)) * [1.0, 3.0] + [0.5, 1.0]])
@@ -117,7 +116,7 @@ def test_compression_converges_and_roundtrips(tmp_path) -> None:
     smp = pathwise_samples(post, 5, 300, np.random.default_rng(4))
     errs = []
     for M in (10, 40, 120):
-        comp = compress(smp, pivoted_cholesky_inducing(spec, M))
+        comp = compress(smp, inducing_indices(spec, M, 0))
         errs.append(compression_error(smp, comp, xt)["max_rel_sd"])
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 1e-2
@@ -160,7 +159,7 @@ def test_sparse_pathwise_samples(basis: str) -> None:
     np.testing.assert_allclose(v_all, var, rtol=1e-4)
     errs = []
     for M in (10, 30, 60):
-        sp = sparse_posterior(spec, spec.Xs[pivoted_cholesky_inducing(spec, M)])
+        sp = sparse_posterior(spec, spec.Xs[inducing_indices(spec, M, 0)])
         m_s, v_s = sp.mean_var(xt)
         errs.append(np.abs(m_s - mean).max() / np.sqrt(var).max())
     assert errs[0] > errs[1] > errs[2]
@@ -193,4 +192,4 @@ def test_compiled_cosine_and_sample_evaluation() -> None:
         comp.beta[s] @ spec.basis_fn(u).T
         + np.sqrt(2.0 * comp.sigma_f**2 / 50) * np.cos(u @ comp.omega[s].T + comp.phase[s]) @ comp.w[s]
         + se_kernel(u, comp.Z, comp.sigma_f, comp.lengthscales) @ comp.a[s] for s in range(2)])
-    np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.y_scale)
+    np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.out_scale)

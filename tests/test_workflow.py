@@ -1,10 +1,15 @@
-"""The Snakemake workflow: lint, the whole DAG on the smoke config, and code-change reruns."""
+"""The Snakemake workflow: lint, the whole DAG on the smoke config, and what reruns after a
+config change or a code edit (exactly the affected rules and their dependants)."""
 
 from __future__ import annotations
 
+import ast
+import os
+import re
 import shutil
 import subprocess
 import sys
+from modulefinder import ModuleFinder
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +23,31 @@ ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "tests" / "smoke_config.yaml"
 
 
+COPY_IGNORE = shutil.ignore_patterns("results", ".snakemake", ".git", "logs", "__pycache__", ".venv",
+                                     "*.egg-info", ".hypothesis", ".pytest_cache", ".ruff_cache", "*.tsv")
+
+
 def snakemake(*args: str, cwd: Path = ROOT,
               snakefile: Path = ROOT / "Snakefile") -> subprocess.CompletedProcess:
+    """Run Snakemake on ``snakefile``; its scripts import crgpr from the same checkout."""
     cmd = [sys.executable, "-m", "snakemake", "-s", str(snakefile), *args]
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1200)
+    env = {**os.environ, "PYTHONPATH": str(snakefile.parent / "src")}
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800, env=env)
+
+
+def planned_jobs(res: subprocess.CompletedProcess) -> dict[str, list[str]]:
+    """Rule -> output lines of every job a dry run plans."""
+    jobs: dict[str, list[str]] = {}
+    rule = None
+    for line in (res.stdout + res.stderr).splitlines():
+        m = re.match(r"^(?:local)?rule (\w+):$", line.strip())
+        if m:
+            rule = m.group(1)
+            jobs.setdefault(rule, [])
+        elif rule and line.strip().startswith("output:"):
+            jobs[rule].append(line.strip().removeprefix("output:").strip())
+    jobs.pop("all", None)
+    return jobs
 
 
 def test_lint_is_clean():
@@ -30,11 +56,19 @@ def test_lint_is_clean():
 
 
 @pytest.fixture(scope="module")
-def smoke_run(tmp_path_factory):
+def smoke_repo(tmp_path_factory):
+    """A copy of the checkout (its code can be edited) and a complete smoke run of its DAG."""
+    repo = tmp_path_factory.mktemp("repo") / "crgpr"
+    shutil.copytree(ROOT, repo, ignore=COPY_IGNORE)
     work = tmp_path_factory.mktemp("smoke")
-    res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-j2", "all")
+    res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-j2", "all", snakefile=repo / "Snakefile")
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
-    return work
+    return repo, work
+
+
+@pytest.fixture(scope="module")
+def smoke_run(smoke_repo):
+    return smoke_repo[1]
 
 
 @pytest.mark.slow
@@ -81,14 +115,133 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
     assert "Nothing to be done" in res.stdout + res.stderr
 
 
+def _smoke_with(tmp_path: Path, old: str, new: str) -> Path:
+    text = SMOKE.read_text()
+    assert text.count(old) == 1, old
+    path = tmp_path / "config.yaml"
+    path.write_text(text.replace(old, new))
+    return path
+
+
+N_GP_MODELS = 9  # the smoke config's gp-prefilter models: 6 paper + 3 objective
+N_FD_MODELS = 6  # cr_gpr_fd: the paper's six
+DISCOVERY = {"discovery_data", "discovery_run", "discovery_summary"}
+UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("old", "new", "reruns", "untouched"),
+    [
+        # a gradient-model setting: every gradient GP and what uses them, nothing upstream
+        ("  n_hyper: 100\n  n_restarts: 1\n  inducing: 50", "  n_hyper: 120\n  n_restarts: 1\n  inducing: 50",
+         {"gradient_model": N_GP_MODELS + N_FD_MODELS, "rollout": 6, "table2": 1, "metrics": 1,
+          "baselines_table": 1, "uq_samples": 1, "paper_tables": 1},
+         UPSTREAM | {"prefilter", "blackbox_train", "blackbox_rollout"}),
+        # a setting of the GP prefilter: the gp branch only, not the finite-difference ablation
+        ("hyper_points: 41", "hyper_points: 30",
+         {"prefilter": 1, "gradient_model": N_GP_MODELS, "blackbox_train": 1, "blackbox_rollout": 2,
+          "rollout": 4, "metrics": 1},
+         UPSTREAM),
+        # the simulated time: every ground truth and everything downstream, not the discovery cases
+        ("t_end_s: 0.2", "t_end_s: 0.25",
+         {"ground_truth": 4, "pinn_train": 3, "pinn_rollout": 6, "prefilter": 2,
+          "gradient_model": N_GP_MODELS + N_FD_MODELS, "blackbox_train": 1, "rollout": 6, "metrics": 1},
+         DISCOVERY),
+    ],
+    ids=["gradient_models.n_hyper", "prefilter.hyper_points", "simulation.t_end_s"],
+)
+def test_a_config_change_reruns_what_depends_on_it_and_nothing_else(smoke_repo, tmp_path, old, new,
+                                                                     reruns, untouched):
+    repo, work = smoke_repo
+    cfg = _smoke_with(tmp_path, old, new)
+    res = snakemake("-d", str(work), "--configfile", str(cfg), "-n", "all", snakefile=repo / "Snakefile")
+    assert res.returncode == 0, res.stderr[-3000:]
+    jobs = planned_jobs(res)
+    for rule, n in reruns.items():
+        assert len(jobs.get(rule, [])) == n, (rule, jobs.get(rule))
+    assert not untouched & set(jobs), sorted(untouched & set(jobs))
+    if "hyper_points" in old:  # the fd branch is untouched
+        assert not [o for outs in jobs.values() for o in outs if "/fd/" in o or "cr_gpr_fd" in o]
+
+
+def _imports_module(script: Path, src: Path, module: str) -> bool:
+    """Whether ``script`` imports ``module``, directly or not (modulefinder, independent of deps.py)."""
+    finder = ModuleFinder(path=[str(src)])
+    finder.run_script(str(script))
+    return module in finder.modules
+
+
+def _rule_scripts(repo: Path) -> dict[str, str]:
+    """Rule name -> the script it runs, from the rule files."""
+    out = {}
+    for smk in (repo / "workflow" / "rules").glob("*.smk"):
+        for m in re.finditer(r"^rule (\w+):\n(?:(?!^rule ).*\n)*?\s+\"\.\./scripts/(\w+)\.py\"",
+                             smk.read_text(), re.M):
+            out[m.group(1)] = m.group(2)
+    return out
+
+
+@pytest.mark.slow
+def test_editing_a_module_reruns_every_rule_that_imports_it(smoke_repo):
+    """Edit learning/features.py: every rule whose script imports it, however indirectly
+    (blackbox_train and blackbox_rollout included), reruns; rules that do not import it and
+    have no input downstream of one that does, do not."""
+    repo, work = smoke_repo
+    src = repo / "src"
+    module = src / "crgpr" / "learning" / "features.py"
+    scripts = _rule_scripts(repo)
+    importers = {rule for rule, script in scripts.items() if _imports_module(
+        repo / "workflow" / "scripts" / f"{script}.py", src, "crgpr.learning.features")}
+    assert {"gradient_model", "rollout", "blackbox_train", "blackbox_rollout"} <= importers
+    independent = {"ground_truth", "prefilter", "pinn_train", "pinn_rollout", "discovery_data"}
+    assert not independent & importers
+    text, stat = module.read_text(), module.stat()
+    try:
+        module.write_text(text + "\n# an edit\n")
+        res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-n", "all",
+                        snakefile=repo / "Snakefile")
+    finally:
+        module.write_text(text)
+        os.utime(module, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert res.returncode == 0, res.stderr[-3000:]
+    jobs = planned_jobs(res)
+    assert importers <= set(jobs), sorted(importers - set(jobs))
+    assert not independent & set(jobs), sorted(independent & set(jobs))
+
+
+def test_rule_script_and_function_names_line_up():
+    """Rule X runs workflow/scripts/X.py; a script that calls crgpr.commands calls its function X."""
+    scripts = _rule_scripts(ROOT)
+    assert scripts and all(rule == script for rule, script in scripts.items()), scripts
+    assert {p.stem for p in (ROOT / "workflow" / "scripts").glob("*.py")} == set(scripts)
+    for rule in scripts:
+        tree = ast.parse((ROOT / "workflow" / "scripts" / f"{rule}.py").read_text())
+        called = [a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                  and (node.module or "").startswith("crgpr.commands.")
+                  and node.module != "crgpr.commands.smk" for a in node.names]
+        if called:
+            assert called == [rule], (rule, called)
+
+
+# Scripts not yet converted to params (their stages' owners convert them; then drop them here).
+PARAMS_PENDING = ("uq_",)
+
+
+def test_scripts_read_params_not_the_whole_config():
+    for script in (ROOT / "workflow" / "scripts").glob("*.py"):
+        if script.stem.startswith(PARAMS_PENDING):
+            continue
+        assert "snakemake.config" not in script.read_text(), script.name
+
+
 @pytest.mark.slow
 def test_editing_the_simulator_reruns_ground_truth(tmp_path):
     """Snakemake sees library edits: editing rod.py schedules the ground-truth jobs again.
 
     (Snakemake 9 ignores a bare ``touch``: it compares checksums of newer inputs.)"""
     repo = tmp_path / "repo"
-    shutil.copytree(ROOT, repo, ignore=shutil.ignore_patterns(
-        "results", ".snakemake", ".git", "logs", "benchmarks", "__pycache__", ".venv", "*.egg-info"))
+    shutil.copytree(ROOT, repo, ignore=COPY_IGNORE)
     work = tmp_path / "work"
     snakefile = repo / "Snakefile"
     target = "results/ground_truth/85.parquet"

@@ -7,15 +7,16 @@ import importlib
 import logging
 import sys
 
-# Modules that provide ``add_cli(subparsers)``; a stage adds itself here.
+from crgpr.commands.smk import limit_threads
+
+# Modules that provide ``add_cli(subparsers)`` (``crgpr.commands.<stage>``); a stage adds itself here.
 COMMAND_MODULES: list[str] = [
     "crgpr.commands.simulate",
-    "crgpr.report.paper",
-    "crgpr.discovery.selection",
-    "crgpr.learning.prefilter",
-    "crgpr.learning.gradient_models",
-    "crgpr.learning.learned",
-    "crgpr.report.metrics",
+    "crgpr.commands.prefilter",
+    "crgpr.commands.models",
+    "crgpr.commands.rollout",
+    "crgpr.commands.report",
+    "crgpr.commands.discovery",
     "crgpr.commands.learn",
 ]
 
@@ -33,10 +34,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    limit_threads()  # the same numbers as the pipeline's rules, whatever the core count
     try:
         args.func(args)
-    except (ValueError, FileNotFoundError, RuntimeError) as exc:
-        print(f"crgpr {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError, RuntimeError) as exc:  # ConfigError is a ValueError
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"crgpr {args.command}: error: {msg}", file=sys.stderr)
         return 2
     return 0
 

@@ -1,11 +1,16 @@
 """Loading and validating ``config.yaml``: JSON schema plus physical checks.
 
-Every error names the offending key as a dotted path (``rod.L0``) and the file.
+Every error is a ``ConfigError`` (one line) naming the offending key as a dotted path
+(``rod.L0``) and the file or the command-line options it came from. Command-line values
+(``crgpr simulate --set/--dt/--t-end``) go through the same schema and checks as the file.
+Non-finite numbers (``.nan``, ``.inf``) are rejected everywhere: JSON schema bounds do
+not catch NaN.
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from importlib import resources
 from pathlib import Path
@@ -18,7 +23,10 @@ from crgpr.physics.params import PARAM_FIELDS, RodParams, SimSettings
 
 
 class ConfigError(ValueError):
-    """A configuration value is missing, unknown, of the wrong type or out of range."""
+    """A configuration value is missing, unknown, of the wrong type or out of range (one line)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 def schema() -> dict[str, Any]:
@@ -32,16 +40,21 @@ def schema_path() -> Path:
 
 
 def _dotted(path: Any) -> str:
-    return ".".join(str(p) for p in path) or "<top level>"
+    """``rod.L0``; a key that is not a plain word is shown quoted (``rod.'L 0'``)."""
+    parts = [str(p) if isinstance(p, int) or (isinstance(p, str) and p.isidentifier()) else repr(p)
+             for p in path]
+    return ".".join(parts) or "<top level>"
 
 
+@functools.cache
 def _validator() -> jsonschema.Draft202012Validator:
     """Validator of the main schema; relative ``$ref``s (stage sections) load from its folder."""
     from referencing import Registry, Resource
 
     base = schema_path().parent
 
-    def retrieve(uri: str) -> Resource:
+    @functools.cache
+    def retrieve(uri: str) -> Resource:  # cached: the registry does not keep what it retrieves
         rel = uri.split("schemas/", 1)[-1] if "schemas/" in uri else uri
         return Resource.from_contents(yaml.safe_load((base / rel).read_text()))
 
@@ -50,36 +63,82 @@ def _validator() -> jsonschema.Draft202012Validator:
     return jsonschema.Draft202012Validator(main, registry=Registry(retrieve=retrieve))
 
 
-def validate_schema(cfg: dict[str, Any], source: str = "config") -> None:
-    """Validate against the schema; raise ConfigError naming the first offending key."""
-    validator = _validator()
-    errors = sorted(validator.iter_errors(cfg), key=lambda e: list(e.absolute_path))
+def check_plain(value: Any, source: str = "config", path: tuple[Any, ...] = ()) -> None:
+    """Reject what JSON schema lets through: non-string keys and non-finite numbers."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise ConfigError(f"{source}: {_dotted((*path, k))}: keys must be strings, got {k!r}")
+            check_plain(v, source, (*path, k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            check_plain(v, source, (*path, i))
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f"{source}: {_dotted(path)}: {value} is not a finite number")
+
+
+def _schema_errors(validator: jsonschema.protocols.Validator, value: Any, source: str,
+                   prefix: tuple[Any, ...] = ()) -> None:
+    errors = sorted(validator.iter_errors(value), key=lambda e: [str(p) for p in e.absolute_path])
     if not errors:
         return
     msgs = []
     for e in errors[:5]:
-        key = _dotted(e.absolute_path)
-        if e.validator == "additionalProperties":
-            extra = sorted(set(e.instance) - set(e.schema.get("properties", {})))
-            where = f"{key}." if e.absolute_path else ""
-            msgs.append(f"unknown key(s) {', '.join(where + x for x in extra)}")
+        path = (*prefix, *e.absolute_path)
+        key = _dotted(path)
+        if e.validator == "additionalProperties" and isinstance(e.instance, dict):
+            extra = sorted((x for x in set(e.instance) - set(e.schema.get("properties", {}))), key=str)
+            msgs.append(f"unknown key(s) {', '.join(_dotted((*path, x)) for x in extra)}")
         else:
-            msgs.append(f"{key}: {e.message}")
+            msgs.append(f"{key}: {_short(e.message)}")
     raise ConfigError(f"{source}: invalid configuration: " + "; ".join(msgs))
 
 
-def check_config(cfg: dict[str, Any], source: str = "config") -> None:
-    """Physical and consistency checks the schema cannot express."""
-    params = rod_params(cfg)
-    sim = cfg["simulation"]
-    dt_max = params.dt_stable()
-    if sim["dt_s"] >= dt_max:
+def _short(msg: str, limit: int = 200) -> str:
+    """One line, at most ``limit`` characters (a schema message quotes the whole value)."""
+    msg = " ".join(msg.split())
+    return msg if len(msg) <= limit else msg[: limit - 3] + "..."
+
+
+def validate_schema(cfg: dict[str, Any], source: str = "config") -> None:
+    """Validate against the schema; raise ConfigError naming the first offending keys."""
+    check_plain(cfg, source)
+    _schema_errors(_validator(), cfg, source)
+
+
+def validate_section(name: str, value: Any, source: str) -> None:
+    """Validate one top-level section (``rod``, ``simulation``, ...) against its schema."""
+    check_plain(value, source, (name,))
+    validator = _validator()
+    sub = validator.evolve(schema={**validator.schema["properties"][name],
+                                   "$id": validator.schema["$id"]})
+    _schema_errors(sub, value, source, (name,))
+
+
+def check_time_grid(params: RodParams, sim: dict[str, Any], source: str = "config") -> None:
+    """A stable time step and a whole number of steps (schema-valid ``simulation`` section)."""
+    try:
+        dt_max = params.dt_stable()
+    except (ArithmeticError, ValueError) as exc:
+        raise ConfigError(f"{source}: rod: parameters out of numerical range ({exc})") from exc
+    if not sim["dt_s"] < dt_max:
         raise ConfigError(
             f"{source}: simulation.dt_s = {sim['dt_s']:g} s is too large for a stable "
             f"Stormer-Verlet run of this rod: the highest frequency bound gives dt < {dt_max:.3g} s")
     n = sim["t_end_s"] / sim["dt_s"]
-    if abs(n - round(n)) > 1e-6 * n:
+    if not math.isfinite(n) or abs(n - round(n)) > 1e-6 * n:
         raise ConfigError(f"{source}: simulation.t_end_s / simulation.dt_s = {n:g} is not an integer")
+    if n > 1e9:
+        raise ConfigError(f"{source}: simulation.t_end_s / simulation.dt_s = {n:g} steps is too many")
+
+
+def check_config(cfg: dict[str, Any], source: str = "config") -> None:
+    """Physical and consistency checks the schema cannot express."""
+    try:
+        params = rod_params(cfg)
+    except (TypeError, ValueError, KeyError) as exc:
+        raise ConfigError(f"{source}: rod: {exc}") from exc
+    check_time_grid(params, cfg["simulation"], source)
     ang = cfg["angles"]
     clash = sorted(set(ang["test_deg"]) & ({ang["train_deg"]} | set(ang["pinn_train_deg"])))
     if clash:
@@ -93,11 +152,15 @@ def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None
     """Read, merge ``overrides`` (nested dict) and validate a configuration file."""
     path = Path(path) if path is not None else Path("config.yaml")
     try:
-        cfg = yaml.safe_load(path.read_text())
+        cfg = yaml.safe_load(path.read_text(encoding="utf-8"))
     except FileNotFoundError as exc:
         raise ConfigError(f"config file not found: {path}") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read: {_short(str(exc))}") from exc
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
+        raise ConfigError(f"{path}: not valid YAML: {_short(str(exc))}") from exc
+    except (RecursionError, ValueError, TypeError, OverflowError) as exc:  # pathological YAML
+        raise ConfigError(f"{path}: not a usable YAML document: {_short(str(exc))}") from exc
     if not isinstance(cfg, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     if overrides:
@@ -107,7 +170,11 @@ def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None
 
 
 def validate_config(cfg: dict[str, Any], source: str = "config") -> None:
-    validate_schema(cfg, source)
+    """Schema, plain-data and physical checks; raises ConfigError (one line)."""
+    try:
+        validate_schema(cfg, source)
+    except RecursionError as exc:
+        raise ConfigError(f"{source}: nested too deeply") from exc
     check_config(cfg, source)
 
 
@@ -133,7 +200,11 @@ def sim_settings(cfg: dict[str, Any]) -> SimSettings:
 
 
 def parse_set(items: list[str]) -> dict[str, Any]:
-    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``)."""
+    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``).
+
+    Only the syntax is checked here (a known key and a number); ``cli_rod_sim`` validates
+    the values by the config file's rules.
+    """
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
@@ -143,10 +214,65 @@ def parse_set(items: list[str]) -> dict[str, Any]:
         if key not in PARAM_FIELDS:
             raise ConfigError(f"--set {key}: unknown rod parameter; known: {', '.join(PARAM_FIELDS)}")
         try:
-            val = float(raw)
-        except ValueError as exc:
-            raise ConfigError(f"--set {key}={raw!r}: not a number") from exc
-        if not math.isfinite(val) and key != "base_spring":
-            raise ConfigError(f"--set {key}={raw!r}: must be finite")
-        out[key] = int(val) if key == "N" else val
+            val: Any = int(raw)
+        except ValueError:
+            try:
+                val = float(raw)
+            except ValueError as exc:
+                raise ConfigError(f"--set {key}={raw!r}: not a number") from exc
+        out[key] = val
     return out
+
+
+# rod effects (RodParams fields that config.yaml's rod section does not have) and the name
+# under which the discovery section's ``cases[].effects`` states their rules
+_EFFECT_RULES = {"viscous_drag": "viscous_drag", "air_drag": "air_drag", "tip_mass": "tip_mass",
+                 "nonlinear_stiffness": "nonlinear_stiffness", "stiffness_gradient": "stiffness_gradient",
+                 "base_spring": "base_compliance"}
+
+
+def _check_effects(effects: dict[str, Any], source: str) -> None:
+    """Effect overrides by the rules of ``discovery.cases[].effects`` (base_spring = inf: clamp)."""
+    if not effects:
+        return
+    disc = yaml.safe_load((schema_path().parent / "sections" / "discovery.schema.yaml").read_text())
+    rules = disc["properties"]["cases"]["items"]["properties"]["effects"]["properties"]
+    props = {k: rules[v] for k, v in _EFFECT_RULES.items() if v in rules}
+    checked = {k: v for k, v in effects.items() if not (k == "base_spring" and v == math.inf)}
+    check_plain(checked, source, ("rod",))
+    sub = {"type": "object", "properties": props}
+    _schema_errors(jsonschema.Draft202012Validator(sub), checked, source, ("rod",))
+
+
+def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: float | None = None,
+                t_end: float | None = None, record_every: int | None = None,
+                base: str = "defaults") -> tuple[RodParams, SimSettings]:
+    """Rod parameters and time grid from a config's ``rod``/``simulation`` sections plus
+    command-line overrides, validated by the config file's schema and checks.
+
+    ``rod`` and ``sim`` are the sections (``simulation`` keys ``dt_s``, ``t_end_s``,
+    ``record_every``); ``base`` names where they came from, for the messages. An option
+    given as 0 is a value (and rejected), not "use the config".
+    """
+    given = [f"--set {x}" for x in sets]
+    given += [f"{flag} {v:g}" for flag, v in (("--dt", dt), ("--t-end", t_end),
+                                               ("--record-every", record_every)) if v is not None]
+    source = f"{base} with {' '.join(given)}" if given else base
+    overrides = parse_set(sets)
+    rod_keys = set(schema()["properties"]["rod"]["properties"])
+    rod = {**rod, **{k: v for k, v in overrides.items() if k in rod_keys}}
+    effects = {k: v for k, v in overrides.items() if k not in rod_keys}
+    sim = dict(sim)
+    for key, v in (("dt_s", dt), ("t_end_s", t_end), ("record_every", record_every)):
+        if v is not None:
+            sim[key] = v
+    validate_section("rod", rod, source)
+    _check_effects(effects, source)
+    validate_section("simulation", sim, source)
+    try:
+        params = RodParams.from_dict({**rod, **effects})
+    except (TypeError, ValueError, KeyError) as exc:
+        raise ConfigError(f"{source}: rod: {exc}") from exc
+    check_time_grid(params, sim, source)
+    return params, SimSettings(dt=float(sim["dt_s"]), t_end=float(sim["t_end_s"]),
+                               record_every=int(sim["record_every"]))

@@ -1,14 +1,22 @@
 """Parquet / JSON / npz I/O: atomic writes, provenance metadata, schema checks.
 
 Every writer goes through a temporary file in the target directory and an atomic rename,
-so a failed or interrupted step never leaves a file that looks complete.
+so a failed or interrupted step never leaves a file that looks complete. Files get the
+usual permissions (0666 minus the umask, 0644 by default), not the 0600 of a temporary
+file. A whole output directory is written the same way (``atomic_dir``) under an exclusive
+lock, so two runs into one directory cannot both report success.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
+import functools
 import json
 import os
+import shutil
+import subprocess
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -24,21 +32,41 @@ from crgpr import __version__
 META_KEY = b"crgpr"
 
 
+# the tracked paths whose uncommitted changes mark the code version "dirty"
+_CODE_PATHS = ("src", "workflow", "Snakefile", "pyproject.toml")
+
+
+@functools.cache
 def code_version() -> str:
-    """Package version plus the git commit of the source tree when available."""
+    """Package version plus the git commit of the source tree when available.
+
+    ``0.1.0+g1a2b3c4`` for a clean checkout, ``0.1.0+g1a2b3c4.dirty`` when the code
+    (``src/``, ``workflow/``, ``Snakefile``, ``pyproject.toml``) has uncommitted changes,
+    ``0.1.0`` for an installed wheel. Results and the config are not code: a run that
+    rewrites committed tables does not make later stamps dirty, and the config values a
+    file depends on are in its own metadata.
+    """
     here = Path(__file__).resolve().parent
-    head = None
     for parent in [here, *here.parents]:
         if (parent / ".git").exists():
             try:
-                import subprocess
-
                 head = subprocess.run(["git", "-C", str(parent), "rev-parse", "--short", "HEAD"],
-                                      capture_output=True, text=True, timeout=5).stdout.strip()
+                                      capture_output=True, text=True, timeout=10).stdout.strip()
+                status = subprocess.run(["git", "-C", str(parent), "status", "--porcelain", "--",
+                                         *_CODE_PATHS], capture_output=True, text=True, timeout=10)
             except (OSError, subprocess.SubprocessError):
-                head = None
-            break
-    return f"{__version__}+g{head}" if head else __version__
+                return __version__
+            if not head:
+                return __version__
+            dirty = status.returncode != 0 or bool(status.stdout.strip())
+            return f"{__version__}+g{head}" + (".dirty" if dirty else "")
+    return __version__
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 @contextlib.contextmanager
@@ -51,10 +79,85 @@ def atomic_path(path: str | Path, suffix: str = "") -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        if tmp_path.exists():  # mkstemp makes 0600; give the file the permissions of open()
+            os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+class OutputLocked(RuntimeError):
+    """Another process is writing the same output directory."""
+
+
+@contextlib.contextmanager
+def output_lock(path: str | Path) -> Iterator[None]:
+    """Hold an exclusive lock on output ``path`` (lock file ``.NAME.lock`` beside it).
+
+    Raises ``OutputLocked`` at once if another process holds it: two runs into one output
+    must not both report success. The lock file is removed on release.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lock = path.parent / f".{path.name}.lock"
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                raise OutputLocked(f"{path}: another run is writing this output right now "
+                                   f"(lock {lock}); wait for it or choose another output") from None
+            raise
+        try:  # the holder before us may have removed the file between our open and flock
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            lock.unlink()
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary directory next to ``path``; it replaces ``path`` only on success.
+
+    Locked with ``output_lock`` for the whole write. An existing ``path`` must be a
+    directory (it is replaced as a whole); on failure it is left untouched and the
+    temporary directory is removed.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise FileExistsError(f"{path}: exists and is not a directory")
+    with output_lock(path):
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+        old = None
+        try:
+            yield tmp
+            os.chmod(tmp, 0o777 & ~_umask())
+            if path.exists():
+                old = path.parent / f"{tmp.name}.old"
+                os.replace(path, old)
+            try:
+                os.replace(tmp, path)
+            except OSError:
+                if old is not None:
+                    os.replace(old, path)
+                    old = None
+                raise
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
 
 
 def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
@@ -88,6 +191,22 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     meta = pq.read_schema(path).metadata or {}
     raw = meta.get(META_KEY)
     return json.loads(raw) if raw else {}
+
+
+def frame_to_grid(df: pd.DataFrame, columns: Sequence[str], source: str = "table"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A long (t, node) table as arrays: times (n_t,) and values (n_t, n_nodes, len(columns)).
+
+    Rows are sorted by (t, node); a table that is not a full grid raises ValueError naming
+    ``source``.
+    """
+    df = df.sort_values(["t", "node"])
+    t = np.unique(df["t"].to_numpy())
+    n_nodes = int(df["node"].max()) + 1
+    if len(df) != t.size * n_nodes:
+        raise ValueError(f"{source}: not a full (t, node) grid ({len(df)} rows, {t.size} times x "
+                         f"{n_nodes} nodes)")
+    return t, df[list(columns)].to_numpy().reshape(t.size, n_nodes, len(columns))
 
 
 def write_json(obj: Any, path: str | Path) -> None:

@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from crgpr.commands.deps import code_closure as _code_closure
+from crgpr.commands.smk import config_subset as _config_subset
 
 BASE = Path(workflow.basedir)
 RESULTS = "results"
@@ -11,6 +12,15 @@ ENV = "../envs/crgpr.yaml"  # relative to the rule files in workflow/rules/
 def code_closure(script):
     """Library files a rule's script imports, transitively (editing one reruns the rule)."""
     return _code_closure(BASE / "workflow" / "scripts" / script, BASE / "src")
+
+
+def cfg_params(*keys):
+    """A rule's ``params: cfg=``: the config values at dotted ``keys`` its output depends on.
+
+    Snakemake reruns a job whose params changed; the rule function reads ``cfg`` and nothing
+    else of the config (see ARCHITECTURE.md, "Conventions").
+    """
+    return _config_subset(config, *keys)
 
 
 ANGLES_GT = sorted(
@@ -23,7 +33,7 @@ ANGLES_GT = sorted(
 ALL_TARGETS = []
 
 # Rollout methods whose results/rollouts/{method}/{angle}.parquet the metrics rule gathers;
-# each stage that writes rollouts extends it (metrics.smk reads it lazily).
+# each stage that writes rollouts extends it (report.smk's metrics rule reads it lazily).
 ROLLOUT_METHODS = []
 
 

@@ -1,15 +1,31 @@
-# Missing-physics workflow (issue 6, beyond the paper): hidden-effect camera data, discovery per
-# case, summary table and figure. The truth files live in their own folder, which the
-# discovery rule never reads.
+# Missing-physics workflow (beyond the paper): hidden-effect camera data, discovery per case,
+# summary table and figure. The truth files live in their own folder, which the discovery
+# rule never reads. Rule = workflow/scripts/<rule>.py = crgpr.commands.discovery.<rule>.
 
 DISCOVERY_CASES = [c["name"] for c in config["discovery"]["cases"]]
+# the data of one case depend on its own entry and the record settings, not on the others
+DISCOVERY_RECORD_KEYS = ["theta0_deg", "duration_s", "sample_rate_hz", "noise_std_m", "truth_refine", "truth_dt_s"]
+DISCOVERY_RUN_KEYS = [
+    "min_rate_hz", "min_samples", "outlier_k", "outlier_min_m", "geometry_tol", "edge_trim_s",
+    "init_window_s", "init_modes", "window_s", "min_gap_rad", "min_explained", "max_remaining",
+    "min_effect_fraction", "max_confirm", "max_effects", "bic_min_improvement", "refine_max_nfev",
+    "gp_max_points", "bootstrap_replicates",
+]
+
 
 rule discovery_data:
     input:
         code=code_closure("discovery_data.py"),
     output:
-        measured=f"{RESULTS}/discovery/{{case}}/measured.parquet",
+        measured=f"{RESULTS}/discovery_data/{{case}}.parquet",
         truth=f"{RESULTS}/discovery_truth/{{case}}.json",
+    params:
+        rod=config["rod"],
+        discovery=lambda wildcards: {
+            **{k: config["discovery"][k] for k in DISCOVERY_RECORD_KEYS},
+            "cases": [c for c in config["discovery"]["cases"] if c["name"] == wildcards.case],
+        },
+        seed=config["seed"],
     wildcard_constraints:
         case=r"[A-Za-z0-9_]+",
     log:
@@ -18,7 +34,7 @@ rule discovery_data:
         "benchmarks/discovery/data_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV
@@ -28,12 +44,18 @@ rule discovery_data:
 
 rule discovery_run:
     input:
-        measured=f"{RESULTS}/discovery/{{case}}/measured.parquet",
+        measured=f"{RESULTS}/discovery_data/{{case}}.parquet",
         code=code_closure("discovery_run.py"),
     output:
         json=f"{RESULTS}/discovery/{{case}}/discovery.json",
         report=f"{RESULTS}/discovery/{{case}}/report.md",
         figures=multiext(f"{RESULTS}/discovery/{{case}}/", "heatmap.png", "before_after.png", "residual.png"),
+    params:
+        rod=config["rod"],
+        dt_s=config["simulation"]["dt_s"],
+        discovery={k: config["discovery"][k] for k in DISCOVERY_RUN_KEYS},
+        seed=config["seed"],
+        out_dir=lambda wildcards: f"{RESULTS}/discovery/{wildcards.case}",
     wildcard_constraints:
         case=r"[A-Za-z0-9_]+",
     log:
@@ -42,8 +64,8 @@ rule discovery_run:
         "benchmarks/discovery/run_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:
@@ -68,6 +90,7 @@ rule discovery_summary:
         ),
     params:
         cases=DISCOVERY_CASES,
+        min_gap_rad=config["discovery"]["min_gap_rad"],
     log:
         "logs/discovery/summary.log",
     benchmark:

@@ -1,7 +1,9 @@
-# Stage 1 (issue 3): prefilter, the derivative data set E (paper Sec. III-B step 2, Table II).
-# Method gp: Matern-5/2 + quadratic-basis GPs in time; fd: central differences (ablation).
+# Prefilter (paper Sec. III-B step 2; Table IV "stage 1"): the derivative data set E of eq. (12).
+# Method gp: Matern-5/2 + quadratic-basis GPs in time (Table II); fd: central differences
+# (the ablation, Table V), which uses only the output grid size.
 
 PREFILTER_METHODS = sorted({m["prefilter"] for m in config["rollouts"]["methods"].values()})
+PREFILTER_PARAMS = {"gp": ["seed", "rod", "prefilter"], "fd": ["rod", "prefilter.n_t_out"]}
 
 
 rule prefilter:
@@ -10,6 +12,8 @@ rule prefilter:
         gt=f"{RESULTS}/ground_truth/{{angle}}.parquet",
     output:
         f"{RESULTS}/prefilter/{{method}}/{{angle}}.parquet",
+    params:
+        cfg=lambda wc: cfg_params(*PREFILTER_PARAMS[wc.method]),
     wildcard_constraints:
         method="gp|fd",
         angle=r"-?\d+",
@@ -19,8 +23,8 @@ rule prefilter:
         "benchmarks/prefilter/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

@@ -20,8 +20,8 @@ rule uq_samples:
         "benchmarks/uq/samples.tsv"
     threads: 1
     resources:
-        mem_mb=6000,
-        runtime=20,
+        mem_mb=3000,
+        runtime=10,
     conda:
         ENV
     script:
@@ -43,8 +43,8 @@ rule uq_rollout:
         "benchmarks/uq/rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=15,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:
@@ -95,8 +95,8 @@ rule uq_calibration:
         "benchmarks/uq/calibration.tsv"
     threads: 1
     resources:
-        mem_mb=6000,
-        runtime=15,
+        mem_mb=1000,
+        runtime=5,
     conda:
         ENV
     script:

@@ -1,5 +1,7 @@
+from crgpr.commands.discovery import discovery_data
 from crgpr.commands.smk import run_rule
-from crgpr.discovery import selection as discovery
 
-run_rule(snakemake, discovery.rule_data, cfg=snakemake.config, case=snakemake.wildcards.case,
-         out=snakemake.output.measured, truth_out=snakemake.output.truth)
+p = snakemake.params  # noqa: F821
+run_rule(snakemake, discovery_data, rod=dict(p.rod), discovery=dict(p.discovery), seed=int(p.seed),  # noqa: F821
+         case=snakemake.wildcards.case, out=snakemake.output.measured,  # noqa: F821
+         truth_out=snakemake.output.truth)  # noqa: F821

@@ -1,5 +1,5 @@
-from crgpr.commands import simulate as ground_truth
+from crgpr.commands.simulate import ground_truth
 from crgpr.commands.smk import run_rule
 
-run_rule(snakemake, ground_truth.rule, cfg=snakemake.config, angle=int(snakemake.wildcards.angle),  # noqa: F821
-         out=snakemake.output.traj, energy_out=snakemake.output.energy)  # noqa: F821
+run_rule(snakemake, ground_truth, cfg=snakemake.params.cfg, angle=int(snakemake.wildcards.angle),
+         out=snakemake.output.traj, energy_out=snakemake.output.energy)

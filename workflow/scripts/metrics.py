@@ -1,7 +1,7 @@
+from crgpr.commands.report import metrics
 from crgpr.commands.smk import run_rule
-from crgpr.report import metrics
 
-run_rule(snakemake, metrics.rule_accuracy, cfg=snakemake.config, methods=list(snakemake.params.methods),
-         angles=list(snakemake.config["angles"]["test_deg"]), results="results",
-         out=snakemake.output.accuracy, table1_out=snakemake.output.table1,
-         table4_out=snakemake.output.table4)
+i, o = snakemake.input, snakemake.output
+run_rule(snakemake, metrics, cfg=snakemake.params.cfg, methods=list(snakemake.params.methods),
+         angles=list(snakemake.params.angles), ground_truth=list(i.gt), rollouts=list(i.rollouts),
+         out=o.accuracy, table1_out=o.table1, table4_out=o.table4)

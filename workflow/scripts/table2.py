@@ -1,4 +1,4 @@
+from crgpr.commands.report import table2
 from crgpr.commands.smk import run_rule
-from crgpr.learning import gradient_models
 
-run_rule(snakemake, gradient_models.table2, model_jsons=list(snakemake.input.models), out=snakemake.output[0])
+run_rule(snakemake, table2, model_jsons=list(snakemake.input.models), out=snakemake.output[0])

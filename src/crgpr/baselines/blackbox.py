@@ -16,26 +16,25 @@ fitting are CR-GPR's: ARD-SE with an explicit basis, hyperparameters by maximisi
 marginal likelihood (``crgpr.gp.fit_gp``) on a seeded random subset, then conditioned on
 ``n_train`` points.
 
-Rollout (eq. (nonpde) without structure): the same kick-drift-kick Stormer-Verlet layout and
-dt as the ground truth, for a state whose velocity is itself learned,
+Rollout (eq. (17) of Sec. III-B without its structure): the generic form of the one
+Stormer-Verlet integrator (``crgpr.physics.integrator.run_verlet``) with the ground truth's dt,
+for a state whose velocity is itself learned,
 
     p_{n+1/2} = p_n + dt/2 F_p,   q_{n+1} = q_n + dt f_q(q_n, p_{n+1/2}),
     F_p = f_p(q_{n+1}, p_{n+1/2}),   p_{n+1} = p_{n+1/2} + dt/2 F_p,
 
-one evaluation of each GP per step (the momentum rate is reused for the next half kick, as
-``run_generic`` reuses its force), clamped base node held fixed.
+one evaluation of each GP per step (the momentum rate is reused for the next half kick),
+clamped base node held fixed.
 
-Divergence: a rollout is stopped when a state is non-finite, a speed exceeds
-``integrator.MAX_SPEED`` or a node leaves the disc of radius 2 L0 around the base (a rod of
-length L0 cannot). The rollout file then holds the trajectory up to the last plausible
-record and that state frozen afterwards (scored like that by the metrics, a bounded and
-conservative error), with ``diverged``, ``t_diverged`` and ``node_diverged`` in its Parquet
-metadata; the baselines table reports the count.
+Divergence: the integrator's one policy (non-finite state, |dq/dt| >= ``integrator.MAX_SPEED``,
+a node farther than ``integrator.REACH`` L0 from the base). The rollout file then holds the
+trajectory up to the last plausible record and that state frozen afterwards (scored like that
+by the metrics, a bounded and conservative error), with ``diverged``, ``t_diverged`` and
+``node_diverged`` in its Parquet metadata; the baselines table reports the count.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
@@ -44,17 +43,15 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
-from crgpr.config import ConfigError, rod_params, sim_settings
-from crgpr.gp import GP, basis_matrix_std, fit_gp
-from crgpr.io import read_parquet, write_json, write_parquet
+from crgpr.config import ConfigError
+from crgpr.gp import GP, KernelMean, fit_gp
+from crgpr.io import frame_to_grid
 from crgpr.learning import features as ft
-from crgpr.learning.prefilter import D1_COLUMNS, PREFILTER_COLUMNS
-from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged
+from crgpr.learning.prefilter import D1_COLUMNS
+from crgpr.physics.integrator import SimulationDiverged, run_verlet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import STATE_NAMES, straight_rod
-from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -76,26 +73,21 @@ def node_features(q: np.ndarray, p: np.ndarray, ds: float, center: float | None)
     return np.concatenate([geo, p[..., 1:, :]], axis=-1)
 
 
-def theta_center(cfg: dict[str, Any], theta: np.ndarray) -> float | None:
-    """CR-GPR's angle window centre (middle of the training range of theta), if wrapping is on."""
-    wrap = bool(cfg.get("gradient_models", {}).get("theta_wrap", False))
-    th = theta[:, 1:]
-    return 0.5 * (float(th.min()) + float(th.max())) if wrap else None
-
-
-def training_set(prefiltered: pd.DataFrame, params: RodParams, cfg: dict[str, Any] | None = None
+def training_set(prefiltered: pd.DataFrame, params: RodParams, theta_wrap: bool
                  ) -> tuple[np.ndarray, np.ndarray, float | None]:
-    """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; angle centre."""
-    df = prefiltered.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if n_nodes != params.N + 1 or len(df) != t.size * n_nodes:
-        raise ConfigError(f"prefilter table has {n_nodes} nodes / {len(df)} rows; expected a full grid "
-                          f"with rod.N + 1 = {params.N + 1} nodes")
-    arr = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in (*STATE_NAMES, *TARGETS)}
+    """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; the angle
+    window centre (``features.theta_center``, None unless ``theta_wrap``)."""
+    cols = (*STATE_NAMES, *TARGETS)
+    try:
+        _, g = frame_to_grid(prefiltered, cols, "prefilter table")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from exc
+    if g.shape[1] != params.N + 1:
+        raise ConfigError(f"prefilter table has {g.shape[1]} nodes; expected rod.N + 1 = {params.N + 1}")
+    arr = {c: np.ascontiguousarray(g[..., k]) for k, c in enumerate(cols)}
     q = np.stack([arr["x"], arr["y"], arr["theta"]], -1)
     p = np.stack([arr["p_x"], arr["p_y"], arr["p_theta"]], -1)
-    center = theta_center(cfg or {}, arr["theta"])
+    center = ft.theta_center(arr["theta"]) if theta_wrap else None
     F = node_features(q, p, params.ds, center).reshape(-1, len(FEATURES))
     Y = np.stack([arr[c] for c in TARGETS], -1)[:, 1:].reshape(-1, 6)
     return F, Y, center
@@ -121,143 +113,48 @@ def fit_blackbox(F: np.ndarray, Y: np.ndarray, settings: dict[str, Any], seed: i
 
 
 # --------------------------------------------------------------------------------------
-# fast posterior mean for the rollout
+# rollout
 # --------------------------------------------------------------------------------------
-@njit(cache=True)
-def _se_mean(U, Ut, alpha, sf2, out):
-    """out[i] = sum_j alpha_j sf2 exp(-|U_i - Ut_j|^2 / 2), inputs already divided by ell."""
-    m, d = U.shape
-    n = Ut.shape[0]
-    for i in range(m):
-        acc = 0.0
-        for j in range(n):
-            r2 = 0.0
-            for k in range(d):
-                diff = U[i, k] - Ut[j, k]
-                r2 += diff * diff
-            acc += alpha[j] * math.exp(-0.5 * r2)
-        out[i] = sf2 * acc
-
-
-class FastMean:
-    """Posterior means of several SE GPs fitted on the same inputs, at many query points."""
-
-    def __init__(self, gps: list[GP]):
-        for gp in gps:
-            if gp.kernel != "se":
-                raise ConfigError("baselines.blackbox_gp.kernel: the rollout supports 'se' only")
-        for gp in gps:
-            gp.ensure_factorised()  # loaded models factorise lazily
-        self.gps = gps
-        self.ell = [np.broadcast_to(gp.lengthscales, (gp.dim,)).astype(float) for gp in gps]
-        self.Ut = [np.ascontiguousarray(gp.standardise_x(gp.X) / e)
-                   for gp, e in zip(gps, self.ell, strict=True)]
-        self.alpha = [np.ascontiguousarray(gp.alpha[:, 0]) for gp in gps]
-
-    def __call__(self, X: np.ndarray, which: range) -> np.ndarray:
-        out = np.empty((X.shape[0], len(which)))
-        buf = np.empty(X.shape[0])
-        for c, k in enumerate(which):
-            gp = self.gps[k]
-            U = gp.standardise_x(X)
-            _se_mean(np.ascontiguousarray(U / self.ell[k]), self.Ut[k], self.alpha[k], gp.sigma_f**2, buf)
-            mean = buf + (basis_matrix_std(gp.basis, U) @ gp.beta)[:, 0]
-            out[:, c] = mean * gp.y_scale[0] + gp.y_mean[0]
-        return out
-
-
 def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSettings,
             center: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Integrate the black-box model from the straight rod at rest; (t, q, p, info).
 
-    On divergence the remaining records repeat the last plausible state (see module doc).
+    The generic form of the one integrator (``run_verlet``), with the learned velocity
+    f_q(q, p) and momentum rate f_p(q, p) evaluated by the exact posterior means
+    (``KernelMean.exact``). On divergence the remaining records repeat the last plausible
+    state (see module doc).
     """
-    fm = FastMean(gps)
-    q = straight_rod(math.radians(theta0_deg), params)
-    p = np.zeros_like(q)
+    means = [KernelMean.exact(gp) for gp in gps]
+    q0 = straight_rod(math.radians(theta0_deg), params)
+    zero = np.zeros((1, 3))
+    free = np.ones_like(q0)
+    free[0] = 0.0  # the base node is held (the black box has no clamp condition of its own)
+
+    def rates(q: np.ndarray, p: np.ndarray, which: range) -> np.ndarray:
+        X = node_features(q, p, params.ds, center)
+        return np.vstack([zero, np.stack([means[k](X) for k in which], axis=1)])
+
     dt, every, n_steps = settings.dt, settings.record_every, settings.n_steps
     n_rec = n_steps // every + 1
-    out_q = np.empty((n_rec, *q.shape))
-    out_p = np.empty_like(out_q)
-    out_q[0], out_p[0] = q, p
-    vmax = np.array([params.rhoA, params.rhoA, params.rhoI]) * MAX_SPEED
-    h = 0.5 * dt
-    free = slice(1, None)
-    Fp = fm(node_features(q, p, params.ds, center), range(3, 6))
     info: dict[str, Any] = {"diverged": False, "t_diverged": None, "node_diverged": None,
                             "step_diverged": None}
-    r_last = 0
-    for k in range(1, n_steps + 1):
-        p[free] += h * Fp
-        q[free] += dt * fm(node_features(q, p, params.ds, center), range(0, 3))
-        Fp = fm(node_features(q, p, params.ds, center), range(3, 6))
-        p[free] += h * Fp
-        if k % every == 0:
-            r = k // every
-            bad = ~(np.isfinite(q).all(1) & np.isfinite(p).all(1) & (np.abs(p) < vmax).all(1)
-                    & (np.hypot(q[:, 0] - q[0, 0], q[:, 1] - q[0, 1]) <= 2.0 * params.L0))
-            if bad.any():
-                node = int(np.nonzero(bad)[0][0])
-                info.update(diverged=True, t_diverged=k * dt, node_diverged=node, step_diverged=k)
-                log.warning("black-box GP rollout at %s deg diverged at t = %.4g s, node %d", theta0_deg,
-                            k * dt, node)
-                out_q[r:] = out_q[r_last]
-                out_p[r:] = out_p[r_last]
-                break
-            out_q[r], out_p[r] = q, p
-            r_last = r
-    t = np.arange(n_rec) * dt * every
-    return t, out_q, out_p, info
-
-
-# --------------------------------------------------------------------------------------
-# Snakemake entry points
-# --------------------------------------------------------------------------------------
-def rule_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary: str) -> None:
-    """Rule ``blackbox_train``: six GPs from the prefiltered training trajectory."""
-    params = rod_params(cfg)
-    st = blackbox_settings(cfg)
-    df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
-    F, Y, center = training_set(df, params, cfg)
-    seed = int(cfg["seed"]) + 4000
-    t0 = time.perf_counter()
-    gps = fit_blackbox(F, Y, st, seed)
-    out = Path(out_dir)
-    rows = []
-    for name, gp in zip(TARGETS, gps, strict=True):
-        gp.save(out / name, {"features": list(FEATURES), "target": name, "seed": seed,
-                             "theta_center": center})
-        rows.append({"model": name, **gp.hyperparameters(), "fit_seconds": gp.info["fit_seconds"]})
-    write_json({"kind": "blackbox_gp", "features": list(FEATURES), "targets": list(TARGETS),
-                "seed": seed, "theta_center": center, "source": str(prefiltered),
-                "seconds": time.perf_counter() - t0, "settings": st, "models": rows}, summary)
+    try:
+        out = run_verlet(q0, np.zeros_like(q0), lambda q, p: rates(q, p, range(3, 6)),
+                         lambda q, p: rates(q, p, range(0, 3)), free, dt, n_steps, every,
+                         length=params.L0, what=f"black-box GP rollout at {theta0_deg:g} deg")
+        return out.t, out.q, out.v, info
+    except SimulationDiverged as exc:
+        info.update(diverged=True, t_diverged=exc.t, node_diverged=exc.node, step_diverged=exc.step)
+        log.warning("%s", exc)
+        part = exc.partial
+        r = part.q.shape[0]
+        q = np.concatenate([part.q, np.repeat(part.q[-1:], n_rec - r, axis=0)])
+        p = np.concatenate([part.v, np.repeat(part.v[-1:], n_rec - r, axis=0)])
+        return np.arange(n_rec) * dt * every, q, p, info
 
 
 def load_models(model_dir: str | Path) -> list[GP]:
     return [GP.load(Path(model_dir) / name) for name in TARGETS]
-
-
-def rule_rollout(cfg: dict[str, Any], model_dir: str, summary: str, angle: int, out: str) -> None:
-    """Rule ``blackbox_rollout``: integrate from the straight rod at ``angle`` deg."""
-    params, settings = rod_params(cfg), sim_settings(cfg)
-    meta = json.loads(Path(summary).read_text())
-    gps = load_models(model_dir)
-    t0 = time.perf_counter()
-    t, q, p, info = rollout(gps, float(angle), params, settings, meta["theta_center"])
-    n_t, n_nodes, _ = q.shape
-    df = pd.DataFrame({
-        "theta0_deg": np.full(n_t * n_nodes, float(angle)), "t": np.repeat(t, n_nodes),
-        "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t), "s": np.tile(params.s, n_t),
-    })
-    for c, name in enumerate(STATE_NAMES):
-        df[name] = (q if c < 3 else p)[..., c % 3].ravel()
-    write_parquet(df[list(TRAJECTORY_COLUMNS)], out,
-                  {"kind": "rollout", "method": "blackbox_gp", "theta0_deg": float(angle),
-                   "rod": params.to_dict(), "simulation": settings.to_dict(), "seed": meta["seed"],
-                   "seconds": time.perf_counter() - t0, **info})
-    if info["diverged"]:
-        log.warning("blackbox_gp %s deg: diverged at t = %.4g s (node %s); frozen afterwards", angle,
-                    info["t_diverged"], info["node_diverged"])
 
 
 __all__ = ["FEATURES", "TARGETS", "SimulationDiverged", "fit_blackbox", "node_features", "rollout",

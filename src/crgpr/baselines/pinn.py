@@ -2,7 +2,7 @@
 
 A fully connected network maps (t, s, theta0) to the full state
 z = [x, y, theta, p_x, p_y, p_theta] of the planar Cosserat rod. It is trained on the
-residual of eq. (ph-compact),
+residual of eq. (9) (Sec. III-A),
 
     dz/dt = (J - R) H_z(z) + G u,        G u = [0, 0, 0, 0, -rho A g, 0],
 
@@ -61,13 +61,15 @@ import torch
 from torch import nn
 
 from crgpr.config import ConfigError, rod_params
-from crgpr.io import read_parquet, write_parquet
+from crgpr.io import read_parquet
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
+from crgpr.seeds import pinn_seed
 
 log = logging.getLogger(__name__)
 
-STATE = ("x", "y", "theta", "p_x", "p_y", "p_theta")
+STATE = STATE_NAMES
 VARIANTS: dict[str, str] = {
     "pinn_physics": "physics only, no data",
     "pinn_data_1": "data-assisted, N_init = 1 (angles.train_deg)",
@@ -77,11 +79,11 @@ ACTIVATIONS = ("tanh", "sin")
 
 
 # --------------------------------------------------------------------------------------
-# scales and the physics residual of eq. (ph-compact)
+# scales and the physics residual of eq. (9), Sec. III-A
 # --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scales:
-    """Reference scales and non-dimensional coefficients of eq. (ph-compact)."""
+    """Reference scales and non-dimensional coefficients of eq. (9) (Sec. III-A)."""
 
     L: float  # length scale L0 [m]
     T: float  # time scale sqrt(L0 / g) [s]
@@ -130,7 +132,7 @@ def stress_resultants(z: torch.Tensor, z_s: torch.Tensor, sc: Scales) -> dict[st
 
 def ph_residual(z: torch.Tensor, z_t: torch.Tensor, z_s: torch.Tensor, z_ss: torch.Tensor,
                 sc: Scales) -> torch.Tensor:
-    """Residual dz/dt - (J - R) H_z - G u of eq. (ph-compact), non-dimensional, (..., 6).
+    """Residual dz/dt - (J - R) H_z - G u of eq. (9) (Sec. III-A), non-dimensional, (..., 6).
 
     ``z`` (..., 6) is the non-dimensional state, ``z_t`` its derivative in t / T, ``z_s`` and
     ``z_ss`` (..., >= 3) the first and second derivatives of (x, y, theta) in s / L0. The
@@ -301,7 +303,7 @@ def variant_angles(cfg: dict[str, Any], variant: str) -> list[int]:
 
 def variant_seed(cfg: dict[str, Any], variant: str) -> int:
     """Seed of one variant, derived from the global seed and the variant name."""
-    return (int(cfg["seed"]) * 1000003 + sum(map(ord, variant)) * 7919) % (2**31 - 1)
+    return pinn_seed(cfg["seed"], variant)
 
 
 def load_training_data(paths: dict[int, str], sc: Scales) -> tuple[np.ndarray, np.ndarray]:
@@ -382,7 +384,7 @@ def train_pinn(cfg: dict[str, Any], variant: str, data_paths: dict[int, str],
             loss = loss + w_data * l_dat
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        if ps.get("grad_clip"):
+        if float(ps["grad_clip"]) > 0.0:  # 0 = off (schema)
             nn.utils.clip_grad_norm_(model.parameters(), float(ps["grad_clip"]))
         opt.step()
         sched.step()
@@ -455,37 +457,3 @@ def prediction_frame(z: np.ndarray, t: np.ndarray, params: RodParams, theta0_deg
     for k, name in enumerate(STATE):
         df[name] = z[..., k].ravel()
     return df[list(TRAJECTORY_COLUMNS)]
-
-
-# --------------------------------------------------------------------------------------
-# Snakemake entry points
-# --------------------------------------------------------------------------------------
-def rule_train(cfg: dict[str, Any], variant: str, data: dict[int, str], weights_out: str,
-               history_out: str, threads: int = 1) -> None:
-    """Rule ``pinn_train``: train one variant, write the state dict and the loss history."""
-    model, hist, info = train_pinn(cfg, variant, data, threads)
-    weights_out = Path(weights_out)
-    weights_out.parent.mkdir(parents=True, exist_ok=True)
-    from crgpr.io import atomic_path
-
-    with atomic_path(weights_out, ".pt") as tmp:
-        torch.save(model.state_dict(), tmp)
-    write_parquet(hist, history_out, {"kind": "pinn_loss_history", **info})
-    log.info("%s trained in %.1f s", variant, info["train_seconds"])
-
-
-def rule_predict(cfg: dict[str, Any], variant: str, weights: str, ground_truth: str, angle: int,
-                 out: str, threads: int = 1) -> None:
-    """Rule ``pinn_rollout``: evaluate a trained PINN on the ground-truth (t, node) grid."""
-    torch.set_num_threads(max(1, int(threads)))
-    params = rod_params(cfg)
-    gt = read_parquet(ground_truth, required=TRAJECTORY_COLUMNS)
-    t = np.unique(gt["t"].to_numpy())
-    n_nodes = int(gt["node"].max()) + 1
-    if n_nodes != params.N + 1:
-        raise ConfigError(f"{ground_truth}: has {n_nodes} nodes but rod.N + 1 = {params.N + 1}")
-    model = load_model(cfg, weights)
-    z = predict(model, params, float(angle), t)
-    write_parquet(prediction_frame(z, t, params, float(angle)), out,
-                  {"kind": "rollout", "method": variant, "theta0_deg": float(angle),
-                   "description": VARIANTS[variant], "rod": params.to_dict(), "diverged": False})

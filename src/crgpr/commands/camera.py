@@ -21,10 +21,18 @@ import numpy as np
 import pandas as pd
 
 from crgpr.commands.learn import learn, load_learned, rollout_models, rollout_settings, try_rollout
-from crgpr.discovery.measured import camera_frame
 from crgpr.io import atomic_path, read_parquet, write_csv, write_json, write_parquet
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_frame
 from crgpr.report.metrics import accuracy
+
+
+def camera_frame(t: np.ndarray, q: np.ndarray, noise_std_m: float, rng: np.random.Generator) -> pd.DataFrame:
+    """Camera-like record of a trajectory: positions of every node only (``node`` column, so
+    s = node * ds on the loader's grid), Gaussian position noise of ``noise_std_m`` [m] on x, y."""
+    n_t, n_nodes, _ = q.shape
+    noisy = q[..., :2] + noise_std_m * rng.standard_normal((n_t, n_nodes, 2))
+    return pd.DataFrame({"t": np.repeat(t, n_nodes), "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t),
+                         "x": noisy[..., 0].ravel(), "y": noisy[..., 1].ravel()})
 
 
 def noise_seed(seed: int, noise_mm: float) -> int:

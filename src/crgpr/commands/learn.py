@@ -20,16 +20,17 @@ import copy
 import json
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from crgpr.config import ConfigError, sim_settings
-from crgpr.discovery.measured import MeasuredDataError, load_measured
-from crgpr.discovery.selection import model_params_for
+from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured
 from crgpr.io import code_version, read_parquet, write_json, write_parquet
-from crgpr.learning.camera import PREFILTERS, LearnSettings, positions_to_state
+from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
@@ -50,8 +51,24 @@ def model_names(features: str) -> list[str]:
     return [*comps, *MOMENTUM_MODELS]
 
 
-def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> np.ndarray | None:
-    """(n_t, N+1, 3) momenta of a full-state file, or None for a positions-only file."""
+def model_params(path: str | Path, cfg: dict[str, Any]) -> RodParams:
+    """The model's rod: ``rod`` of the config on the file's node grid.
+
+    A file with a ``node`` column puts its markers at s = node * ds with N = its largest
+    node (the camera's grid, ds = L0 / N); a file with ``s`` keeps the config's N, and its
+    markers must then lie on that grid (``learning.camera.check_node_grid``).
+    """
+    params = rod_params(cfg)
+    try:
+        nodes = pd.read_parquet(path, columns=["node"])["node"].to_numpy(dtype=float)
+    except Exception:  # noqa: BLE001 - no node column (or unreadable: the loader names the error)
+        return params
+    n = int(np.nanmax(nodes)) if nodes.size and np.isfinite(nodes).any() else 0
+    return replace(params, N=n) if n >= 1 else params
+
+
+def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(n_t, N+1) theta and (n_t, N+1, 3) momenta of a full-state file, or None (positions only)."""
     df = read_parquet(path)
     present = [c for c in MOMENTUM_COLUMNS if c in df.columns]
     if not present:
@@ -61,8 +78,8 @@ def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> np.ndarray 
         raise MeasuredDataError(f"{path}: a full-state file needs theta, p_x, p_y, p_theta; "
                                 f"missing {missing}")
     d = df.sort_values(["t", "node"], kind="stable")
-    out = np.empty((n_t, n_nodes, 3))
-    for k, c in enumerate(MOMENTUM_COLUMNS):
+    out = np.empty((n_t, n_nodes, 4))
+    for k, c in enumerate((*MOMENTUM_COLUMNS, "theta")):
         v = d[c].to_numpy(dtype=float)
         if not np.all(np.isfinite(v)):
             raise MeasuredDataError(f"{path}: column {c!r} has {int((~np.isfinite(v)).sum())} "
@@ -70,7 +87,7 @@ def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> np.ndarray 
         if v.size != n_t * n_nodes:
             raise MeasuredDataError(f"{path}: column {c!r} does not fill the (t, node) grid")
         out[..., k] = v.reshape(n_t, n_nodes)
-    return out
+    return out[..., 3], out[..., :3]
 
 
 def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], features: str = "objective",
@@ -85,15 +102,17 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     cam = cfg["camera"]["learn"]
     st = LearnSettings.from_config(cam)
     disc = cfg["discovery"]
-    meas = load_measured(measured, float(disc["min_rate_hz"]), int(disc["min_samples"]))
-    params = model_params_for(meas, cfg)
+    params = model_params(measured, cfg)
+    meas = load_measured(measured, params.L0, params.ds, ScreenSettings.from_config(disc))
     seed = int(cfg["seed"]) + 3000
-    p = _full_state_momenta(measured, meas.t.size, meas.x.shape[1])
-    if p is None:
+    full = _full_state_momenta(measured, meas.t.size, meas.x.shape[1])
+    if full is None:
         arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed)
         kind = "positions"
     else:
-        traj = Trajectory(math.nan, meas.t, np.stack([meas.x, meas.y, meas.theta], axis=-1), p, params)
+        check_node_grid(meas, params)
+        theta, p = full
+        traj = Trajectory(math.nan, meas.t, np.stack([meas.x, meas.y, theta], axis=-1), p, params)
         df, pmeta = prefilter(traj, prefilter_method, PrefilterSettings.from_config(cfg), seed)
         arr = prefiltered_arrays(df)
         state_report = {"prefilter": prefilter_method, "n_frames": int(meas.t.size),

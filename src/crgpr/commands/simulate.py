@@ -1,4 +1,5 @@
-"""Stage 0: ground-truth trajectories per initial angle (paper Sec. IV, Step 1).
+"""Ground truth, step 1 of the paper's Sec. III-B (Sec. IV, "Step 1"): rule ``ground_truth``
+and the command ``crgpr simulate``.
 
 Writes ``results/ground_truth/{angle}.parquet`` (one row per (t, node)) and
 ``results/ground_truth/{angle}_energy.parquet`` (one row per t), with the parameters and
@@ -9,10 +10,11 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import ConfigError, load_config, parse_set, rod_params, sim_settings
+from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params, schema, sim_settings
 from crgpr.io import write_parquet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import energy_frame, simulate, trajectory_frame
@@ -37,10 +39,9 @@ def write_ground_truth(theta0_deg: float, params: RodParams, settings: SimSettin
     write_parquet(trajectory_frame(traj), out, meta)
 
 
-def rule(cfg: dict[str, Any], angle: int, out: str, energy_out: str) -> None:
-    """Snakemake entry point of rule ``ground_truth``."""
-    write_ground_truth(float(angle), rod_params(cfg), sim_settings(cfg), out, energy_out,
-                       {"seed": cfg["seed"]})
+def ground_truth(cfg: dict[str, Any], angle: int, out: str, energy_out: str) -> None:
+    """Rule ``ground_truth`` (config: ``rod``, ``simulation``; deterministic, no seed)."""
+    write_ground_truth(float(angle), rod_params(cfg), sim_settings(cfg), out, energy_out)
 
 
 def add_cli(sub: argparse._SubParsersAction) -> None:
@@ -64,10 +65,13 @@ def _cli(args: argparse.Namespace) -> None:
     cfg_path = args.config or ("config.yaml" if Path("config.yaml").exists() else None)
     if cfg_path:
         cfg = load_config(cfg_path)
-        params, settings = rod_params(cfg), sim_settings(cfg)
-    else:
-        params, settings = RodParams(), SimSettings()
-    params = params.replace(**parse_set(args.set))
-    settings = SimSettings(dt=args.dt or settings.dt, t_end=args.t_end or settings.t_end,
-                           record_every=args.record_every or settings.record_every)
+        rod, sim, base = cfg["rod"], cfg["simulation"], str(cfg_path)
+    else:  # the paper's rod (RodParams' documented defaults), restricted to the config's keys
+        keys = schema()["properties"]["rod"]["properties"]
+        rod = {k: v for k, v in RodParams().to_dict().items() if k in keys}
+        d = SimSettings()
+        sim, base = {"dt_s": d.dt, "t_end_s": d.t_end, "record_every": d.record_every}, "the paper's defaults"
+    params, settings = cli_rod_sim(rod, sim, args.set, args.dt, args.t_end, args.record_every, base)
+    if not math.isfinite(args.theta0):
+        raise ConfigError(f"--theta0 {args.theta0}: must be a finite angle [deg]")
     write_ground_truth(args.theta0, params, settings, args.out, args.energy_out)

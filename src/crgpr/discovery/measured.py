@@ -1,21 +1,31 @@
-"""Measured (camera) rod data: loading, validation, angles from positions, GP smoothing.
+"""Measured (camera) rod data: loading, validation, gross-outlier and geometry screening.
 
-A measured file is Parquet with one row per (t, node): ``t`` [s], ``node`` (0 = base,
-s = node * ds), ``x``, ``y`` [m] and optionally ``theta`` [rad]. Following the paper's
-Remark in Sec. III-B, theta is derived from positions and the momenta from the known mass
-distribution: segment angles phi_j = atan2(y_{j+1} - y_j, x_{j+1} - x_j) (unwrapped in time
-and along s) are the mid-segment angles theta_bar_j of ``rod.py``; nodal angles are their
-averages theta_i = (phi_{i-1} + phi_i) / 2 in the interior and the linear extrapolations
-theta_0 = (3 phi_0 - phi_1) / 2, theta_N = (3 phi_{N-1} - phi_{N-2}) / 2 at the ends.
-Positions are smoothed and differentiated per node with the project's GP prefilter
-(``crgpr.gp.smooth_series``: Matern-5/2 GP with a quadratic basis, analytic derivatives);
-angle rates follow analytically from the smoothed position derivatives.
+A measured file is Parquet (or a table) with one row per observation of one marker:
+``t`` [s], the marker's place along the rod as either ``s`` [m] (arc length from the base,
+markers anywhere) or ``node`` (an integer, s = node * ds on the model grid), and its position
+``x``, ``y`` [m] in the model's frame (base at the origin unless a base marker s = 0 is given).
+Any number >= 4 of markers; rows in any order. Following the paper's Remark in Sec. III-B,
+positions are the measurement: angles and momenta are derived (``crgpr.discovery.kinematics``).
+
+Tolerated and reported (never silently):
+* dropped frames and occlusions: missing rows or NaN/inf in x, y -> missing samples;
+* gross outliers (a marker jumping for a frame, swapped markers): samples far from a
+  running median of their own marker (``outlier_k`` robust standard deviations and at least
+  ``outlier_min_m``), and samples that make the rod's geometry impossible (a chord between
+  neighbouring markers longer than their arc-length distance by more than ``geometry_tol``,
+  shorter than half of it, beyond ``outlier_k`` standard deviations of the chord's noise, or
+  turning by more than 3 pi / 4) are excluded;
+* a marker with fewer than ``min_samples`` usable samples is dropped.
+Rejected with one line naming the file (``MeasuredDataError``): an empty or unreadable file,
+missing or non-numeric columns, non-finite t or s, s outside [0, L0], duplicate (t, marker)
+rows, times off a uniform grid, a rate below ``min_rate_hz``, too few frames or markers, and a
+geometry that is impossible in most frames (wrong s, units or base position).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -23,26 +33,50 @@ import pandas as pd
 
 from crgpr.io import read_parquet
 
-REQUIRED_COLUMNS: tuple[str, ...] = ("t", "node", "x", "y")
+MARKER_COLUMNS: tuple[str, ...] = ("t", "x", "y")
+PLACE_COLUMNS: tuple[str, ...] = ("s", "node")
+MAX_TURN_RAD = 0.75 * math.pi  # turning between neighbouring chords beyond this: impossible
+MIN_CHORD_RATIO = 0.5  # a chord shorter than half its arc length: impossible for this rod
 
 
 class MeasuredDataError(ValueError):
     """The measured data file is unusable; the message names the file and the problem."""
 
 
+@dataclass(frozen=True)
+class ScreenSettings:
+    """Validation and screening settings (config section ``discovery``; no defaults here)."""
+
+    min_rate_hz: float
+    min_samples: int
+    outlier_k: float
+    outlier_min_m: float
+    geometry_tol: float
+
+    @classmethod
+    def from_config(cls, d: dict) -> ScreenSettings:
+        return cls(float(d["min_rate_hz"]), int(d["min_samples"]), float(d["outlier_k"]),
+                   float(d["outlier_min_m"]), float(d["geometry_tol"]))
+
+
 @dataclass
 class Measured:
-    """Positions on a uniform time grid: t (n_t,), x, y (n_t, N+1); theta optional."""
+    """Marker positions on a uniform time grid, NaN where missing or excluded.
+
+    t (n_t,) [s]; s (n_m,) marker arc lengths [m], ascending; x, y (n_t, n_m) [m].
+    ``missing_fraction`` (n_m,): share of frames without a finite sample (dropped rows, NaN);
+    ``outliers`` (n_t, n_m): samples excluded by the screening; ``notes``: what was done.
+    """
 
     t: np.ndarray
+    s: np.ndarray
     x: np.ndarray
     y: np.ndarray
-    theta: np.ndarray | None
     source: str
-
-    @property
-    def n_segments(self) -> int:
-        return self.x.shape[1] - 1
+    missing_fraction: np.ndarray
+    outliers: np.ndarray
+    notes: list[str] = field(default_factory=list)
+    dropped_markers: list[float] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -52,206 +86,280 @@ class Measured:
     def rate_hz(self) -> float:
         return 1.0 / self.dt
 
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.x) & np.isfinite(self.y)
 
-@dataclass
-class Kinematics:
-    """Smoothed configuration q, velocity v, acceleration a: (n_t, N+1, 3) = (x, y, theta)."""
+    @property
+    def has_base(self) -> bool:
+        return bool(self.s[0] <= 1e-9)
 
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    noise_std_m: float  # GP noise level of the positions (mean over nodes) [m]
-    base_segment_angle: np.ndarray | None = None  # phi_0(t), smoothed in time only [rad]
+    def summary(self) -> dict:
+        """Report of the input: markers, missing and excluded samples per marker."""
+        return {
+            "n_frames": int(self.t.size), "n_markers": int(self.s.size),
+            "t0_s": float(self.t[0]), "sample_rate_hz": self.rate_hz,
+            "markers_s_m": [float(v) for v in self.s],
+            "missing_fraction": [float(v) for v in self.missing_fraction],
+            "outliers_excluded": [int(v) for v in self.outliers.sum(axis=0)],
+            "outliers_total": int(self.outliers.sum()),
+            "base_marker": self.has_base, "dropped_markers_s_m": list(self.dropped_markers),
+            "notes": list(self.notes),
+        }
 
 
-def validate_frame(df: pd.DataFrame, source: str, min_rate_hz: float = 200.0,
-                   min_samples: int = 20, rel_dt_tol: float = 1.0e-3) -> Measured:
-    """Check a measured table and reshape it to a (t, node) grid; raise MeasuredDataError."""
-    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
-    if missing:
-        raise MeasuredDataError(f"{source}: missing column(s) {missing}; has {list(df.columns)}")
-    cols = list(REQUIRED_COLUMNS) + (["theta"] if "theta" in df.columns else [])
-    for c in cols:
-        vals = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-        bad = ~np.isfinite(vals)
+def _numeric(df: pd.DataFrame, col: str, source: str) -> np.ndarray:
+    raw = df[col]
+    vals = pd.to_numeric(raw, errors="coerce")
+    bad = vals.isna() & raw.notna()
+    if bad.any():
+        i = int(np.argmax(bad.to_numpy()))
+        raise MeasuredDataError(f"{source}: column {col!r} has non-numeric value {raw.iloc[i]!r} at row {i}")
+    try:
+        return vals.to_numpy(dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MeasuredDataError(f"{source}: column {col!r} is not numeric") from exc
+
+
+def validate_frame(df: pd.DataFrame, source: str, L0: float, ds: float, st: ScreenSettings
+                   ) -> Measured:
+    """Check a measured table, place it on a (t, marker) grid and screen it (module docstring)."""
+    if not isinstance(df, pd.DataFrame) or len(df) == 0:
+        raise MeasuredDataError(f"{source}: no rows")
+    missing = [c for c in MARKER_COLUMNS if c not in df.columns]
+    place = next((c for c in PLACE_COLUMNS if c in df.columns), None)
+    if missing or place is None:
+        need = missing + ([] if place else ["s or node"])
+        raise MeasuredDataError(f"{source}: missing column(s) {need}; has {list(df.columns)}")
+    t = _numeric(df, "t", source)
+    loc = _numeric(df, place, source)
+    x = _numeric(df, "x", source)
+    y = _numeric(df, "y", source)
+    for name, arr in (("t", t), (place, loc)):
+        bad = ~np.isfinite(arr)
         if bad.any():
-            raise MeasuredDataError(f"{source}: column {c!r} has {int(bad.sum())} NaN/non-finite or "
-                                    f"non-numeric value(s) (first at row {int(np.argmax(bad))})")
-    node = df["node"].to_numpy(dtype=float)
-    if np.any(node != np.round(node)) or node.min() < 0:
-        raise MeasuredDataError(f"{source}: column 'node' must hold non-negative integers")
-    node = node.astype(int)
-    n_nodes = int(node.max()) + 1
-    if n_nodes < 4:
-        raise MeasuredDataError(f"{source}: need at least 4 nodes (3 segments), got {n_nodes}")
-    present = np.unique(node)
-    if present.size != n_nodes:
-        gaps = sorted(set(range(n_nodes)) - set(present.tolist()))[:5]
-        raise MeasuredDataError(f"{source}: nodes must be 0..{n_nodes - 1} without gaps; missing {gaps}")
-    t = df["t"].to_numpy(dtype=float)
-    for i in range(n_nodes):
-        ti = t[node == i]
-        d = np.diff(ti)
-        if np.any(d <= 0):
-            k = int(np.argmax(d <= 0))
-            raise MeasuredDataError(f"{source}: time is not strictly increasing for node {i} "
-                                    f"(t = {ti[k]:.6g} s followed by {ti[k + 1]:.6g} s)")
+            raise MeasuredDataError(f"{source}: column {name!r} has {int(bad.sum())} NaN/non-finite "
+                                    f"value(s) (first at row {int(np.argmax(bad))})")
+    if place == "node":
+        if np.any(loc != np.round(loc)) or loc.min() < 0:
+            raise MeasuredDataError(f"{source}: column 'node' must hold non-negative integers")
+        s = loc * ds
+    else:
+        s = loc
+    if s.min() < -1e-9 or s.max() > L0 * (1.0 + 1e-6) + 1e-9:
+        k = int(np.argmax((s < -1e-9) | (s > L0 * (1.0 + 1e-6) + 1e-9)))
+        raise MeasuredDataError(f"{source}: column {place!r} puts a marker at s = {s[k]:.6g} m, "
+                                f"outside the rod [0, {L0:g}] m (row {k})")
+    s = np.clip(np.round(s, 9), 0.0, L0)
+    marks, m_idx = np.unique(s, return_inverse=True)
+    if marks.size < 4:
+        raise MeasuredDataError(f"{source}: need at least 4 markers, got {marks.size} (s = {marks.tolist()})")
     times = np.unique(t)
-    counts = np.bincount(node, minlength=n_nodes)
-    if np.any(counts != times.size):
-        i = int(np.argmax(counts != times.size))
-        raise MeasuredDataError(f"{source}: node {i} has {counts[i]} samples but there are "
-                                f"{times.size} distinct times; every node needs every time")
-    if times.size < min_samples:
-        raise MeasuredDataError(f"{source}: only {times.size} time samples; need at least {min_samples}")
-    dts = np.diff(times)
-    dt = float(np.median(dts))
-    if np.max(np.abs(dts - dt)) > rel_dt_tol * dt:
-        k = int(np.argmax(np.abs(dts - dt)))
-        raise MeasuredDataError(f"{source}: uneven time sampling: step {dts[k]:.6g} s at "
-                                f"t = {times[k]:.6g} s "
-                                f"vs median {dt:.6g} s (uniform sampling required)")
-    if 1.0 / dt < min_rate_hz * (1.0 - 1e-9):
+    if times.size < 2:
+        raise MeasuredDataError(f"{source}: only {times.size} distinct time(s)")
+    dt = float(np.median(np.diff(times)))
+    k_t = np.rint((t - times[0]) / dt)
+    off = np.abs(t - times[0] - k_t * dt)
+    if np.any(off > 0.1 * dt) or k_t.max() > 10 * times.size + 10:
+        k = int(np.argmax(off))
+        raise MeasuredDataError(f"{source}: uneven time sampling: t = {t[k]:.6g} s is off the uniform "
+                                f"grid of step {dt:.6g} s (frames may be missing, not shifted)")
+    if 1.0 / dt < st.min_rate_hz * (1.0 - 1e-9):
         raise MeasuredDataError(f"{source}: sampling rate {1.0 / dt:.4g} Hz is below the minimum "
-                                f"{min_rate_hz:g} Hz")
-    order = np.lexsort((node, t))
-    n_t = times.size
-    x = df["x"].to_numpy(dtype=float)[order].reshape(n_t, n_nodes)
-    y = df["y"].to_numpy(dtype=float)[order].reshape(n_t, n_nodes)
-    th = df["theta"].to_numpy(dtype=float)[order].reshape(n_t, n_nodes) if "theta" in df.columns else None
-    seg = np.hypot(np.diff(x, axis=1), np.diff(y, axis=1))
-    if np.any(seg <= 0):
-        raise MeasuredDataError(f"{source}: two neighbouring nodes coincide (zero segment length)")
-    return Measured(times, x, y, th, source)
+                                f"{st.min_rate_hz:g} Hz")
+    k_t = k_t.astype(int)
+    n_t = int(k_t.max()) + 1
+    key = k_t * marks.size + m_idx
+    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        r = int(first[np.argmax(counts > 1)])
+        raise MeasuredDataError(f"{source}: duplicate rows for t = {t[r]:.6g} s, {place} = {loc[r]:g} "
+                                f"({int(counts.max())} rows)")
+    X = np.full((n_t, marks.size), np.nan)
+    Y = np.full((n_t, marks.size), np.nan)
+    X[k_t, m_idx] = x
+    Y[k_t, m_idx] = y
+    bad = ~(np.isfinite(X) & np.isfinite(Y))
+    X[bad] = np.nan
+    Y[bad] = np.nan
+    grid = times[0] + np.arange(n_t) * dt
+    frames = int(np.sum(~bad.all(axis=1)))
+    if frames < st.min_samples:
+        raise MeasuredDataError(f"{source}: only {frames} frames with data; need at least {st.min_samples}")
+    meas = Measured(grid, marks, X, Y, source, bad.mean(axis=0), np.zeros_like(bad))
+    if bad.any():
+        worst = int(np.argmax(meas.missing_fraction))
+        meas.notes.append(f"{int(bad.sum())} missing samples (dropped frames or NaN); worst marker "
+                          f"s = {marks[worst]:.3g} m misses {meas.missing_fraction[worst]:.1%}")
+    screen(meas, st)
+    return meas
 
 
-def load_measured(path: str | Path, min_rate_hz: float = 200.0, min_samples: int = 20) -> Measured:
-    """Read and validate a measured Parquet file (see module docstring)."""
+def _mad(r: np.ndarray) -> np.ndarray:
+    """Robust standard deviation per column (1.4826 MAD), 0 where a column has no data."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mad = np.nanmedian(np.abs(r - np.nanmedian(r, axis=0)), axis=0) * 1.4826
+    return np.nan_to_num(mad, nan=0.0)
+
+
+def _cubic_prediction(a: np.ndarray) -> np.ndarray:
+    """Standardised residual of each sample from the cubic through its four nearest
+    neighbours in time (two each side inside the record, one-sided at its ends): for the
+    neighbour offsets o and Lagrange weights w, (a_k - sum_i w_i a_{k+o_i}) / sqrt(1 + |w|^2),
+    which has the camera noise's standard deviation; NaN where a neighbour is missing."""
+    n = a.shape[0]
+    r = np.full_like(a, np.nan)
+    if n < 5:
+        return r
+    for k in range(n):
+        lo = min(max(k - 2, 0), n - 5)
+        offs = [o for o in range(lo - k, lo - k + 5) if o != 0]
+        w = [math.prod((0.0 - oj) / (oi - oj) for oj in offs if oj != oi) for oi in offs]
+        pred = sum(wi * a[k + oi] for wi, oi in zip(w, offs, strict=True))
+        r[k] = (a[k] - pred) / math.sqrt(1.0 + sum(wi * wi for wi in w))
+    return r
+
+
+def _running_median(a: np.ndarray, half: int = 2) -> np.ndarray:
+    """Median of the ``half`` neighbours on each side in time, the sample itself left out."""
+    n = a.shape[0]
+    pad = np.full((half,) + a.shape[1:], np.nan)
+    ap = np.concatenate([pad, a, pad])
+    shifts = [ap[half + k: half + k + n] for k in range(-half, half + 1) if k != 0]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(np.stack(shifts), axis=0)
+
+
+def screen(meas: Measured, st: ScreenSettings) -> None:
+    """Exclude gross outliers and impossible geometry in place; drop starved markers."""
+    X, Y = meas.x, meas.y
+    out = np.zeros(X.shape, dtype=bool)
+    sig = []
+    for A in (X, Y):
+        # a gross outlier departs both from the median of its neighbours (robust to a bad
+        # neighbour) and from their cubic prediction (exact for smooth fast motion)
+        r_med = A - _running_median(A)
+        r_cub = _cubic_prediction(A)
+        mad_med = _mad(r_med)
+        mad_cub = _mad(r_cub)
+        sig.append(float(np.median(mad_cub)))
+        thr_med = np.maximum(st.outlier_k * mad_med, st.outlier_min_m)
+        thr_cub = np.maximum(st.outlier_k * mad_cub, st.outlier_min_m / math.sqrt(2.0))
+        far_med = np.abs(np.nan_to_num(r_med, nan=0.0)) > thr_med[None, :]
+        far_cub = ~(np.abs(r_cub) <= thr_cub[None, :])  # NaN (a neighbour missing): median decides
+        out |= far_med & far_cub
+    X[out] = np.nan
+    Y[out] = np.nan
+    n_marker = int(out.sum())
+    # chord lengths carry the noise of two markers: allow outlier_k of their std on top
+    slack = st.outlier_k * math.sqrt(2.0) * max(sig)
+    geo, frac_bad = _geometry_screen(meas, st.geometry_tol, slack)
+    if frac_bad > 0.2:
+        raise MeasuredDataError(f"{meas.source}: impossible geometry in {frac_bad:.0%} of the frames "
+                                f"(median chord / arc length between neighbouring markers "
+                                f"{_median_ratio(meas):.3g}); check the s/node column, the units (m) "
+                                f"and that the base is at the origin when there is no s = 0 marker")
+    X[geo] = np.nan
+    Y[geo] = np.nan
+    meas.outliers = out | geo
+    if meas.outliers.any():
+        meas.notes.append(f"{int(meas.outliers.sum())} outlier samples excluded ({n_marker} far from their "
+                          f"marker's running median, {int(geo.sum())} with impossible geometry)")
+    n_valid = np.sum(np.isfinite(X), axis=0)
+    keep = n_valid >= st.min_samples
+    if not keep.all():
+        gone = meas.s[~keep]
+        meas.dropped_markers = [float(v) for v in gone]
+        meas.notes.append(f"markers at s = {[round(float(v), 4) for v in gone]} m dropped: fewer than "
+                          f"{st.min_samples} usable samples")
+        if keep.sum() < 4:
+            raise MeasuredDataError(f"{meas.source}: fewer than 4 markers with {st.min_samples} usable "
+                                    f"samples each")
+        meas.s, meas.x, meas.y = meas.s[keep], X[:, keep], Y[:, keep]
+        meas.missing_fraction, meas.outliers = meas.missing_fraction[keep], meas.outliers[:, keep]
+    if np.sum(np.isfinite(meas.x).any(axis=1)) < st.min_samples:
+        raise MeasuredDataError(f"{meas.source}: fewer than {st.min_samples} frames left after screening")
+
+
+def _points(meas: Measured) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Marker positions with the base (origin when no s = 0 marker) prepended."""
+    if meas.has_base:
+        return meas.s, meas.x, meas.y
+    z = np.zeros((meas.t.size, 1))
+    return np.r_[0.0, meas.s], np.c_[z, meas.x], np.c_[z, meas.y]
+
+
+def _median_ratio(meas: Measured) -> float:
+    s, X, Y = _points(meas)
+    ratio = np.hypot(np.diff(X, axis=1), np.diff(Y, axis=1)) / np.diff(s)[None, :]
+    return float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else float("nan")
+
+
+def _frame_violations(s: np.ndarray, x: np.ndarray, y: np.ndarray, tol: float, slack: float
+                      ) -> np.ndarray:
+    """Per point of one frame, how many impossible chords/turns it takes part in."""
+    n = s.size
+    hits = np.zeros(n, dtype=int)
+    dx, dy = np.diff(x), np.diff(y)
+    arc = np.diff(s)
+    chord = np.hypot(dx, dy)
+    badc = (chord > arc * (1.0 + tol) + slack) | (chord < arc * MIN_CHORD_RATIO - slack)
+    hits[:-1] += badc
+    hits[1:] += badc
+    ang = np.arctan2(dy, dx)
+    turn = np.abs((np.diff(ang) + math.pi) % (2.0 * math.pi) - math.pi)
+    badt = turn > MAX_TURN_RAD
+    hits[:-2] += badt
+    hits[1:-1] += badt
+    hits[2:] += badt
+    return hits
+
+
+def _geometry_screen(meas: Measured, tol: float, slack: float) -> tuple[np.ndarray, float]:
+    """Samples whose removal makes each frame's marker chain possible; share of bad frames."""
+    s_all, X, Y = _points(meas)
+    off = 0 if meas.has_base else 1
+    excl = np.zeros(meas.x.shape, dtype=bool)
+    n_bad = 0
+    n_frames = 0
+    for k in range(meas.t.size):
+        ok = np.isfinite(X[k]) & np.isfinite(Y[k])
+        if ok.sum() < 3:
+            continue
+        n_frames += 1
+        idx = np.nonzero(ok)[0]
+        hits = _frame_violations(s_all[idx], X[k, idx], Y[k, idx], tol, slack)
+        if not hits.any():
+            continue
+        n_bad += 1
+        while hits.any() and idx.size >= 3:
+            cand = idx[hits == hits.max()]
+            cand = cand[cand >= off] if (cand >= off).any() else cand  # never blame the virtual base
+            j = int(cand[-1]) if cand.size else int(idx[-1])
+            if j < off:
+                break
+            excl[k, j - off] = True
+            idx = idx[idx != j]
+            hits = _frame_violations(s_all[idx], X[k, idx], Y[k, idx], tol, slack)
+        if hits.any():
+            excl[k, :] = True
+    return excl, n_bad / max(n_frames, 1)
+
+
+def load_measured(path: str | Path, L0: float, ds: float, st: ScreenSettings) -> Measured:
+    """Read, validate and screen a measured Parquet file (see module docstring)."""
     try:
         df = read_parquet(path)
+    except FileNotFoundError as exc:
+        raise MeasuredDataError(str(exc)) from exc
     except ValueError as exc:
         raise MeasuredDataError(str(exc)) from exc
-    return validate_frame(df, str(path), min_rate_hz, min_samples)
-
-
-def segment_angles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Segment angles phi (n_t, N) from node positions, unwrapped in time and along s."""
-    phi = np.arctan2(np.diff(y, axis=-1), np.diff(x, axis=-1))
-    phi = np.unwrap(phi, axis=0)  # continuous in time per segment
-    first = np.unwrap(phi[0])  # continuous along s at the first sample
-    phi += 2.0 * math.pi * np.round((first - phi[0]) / (2.0 * math.pi))
-    return phi
-
-
-def node_angles(phi: np.ndarray) -> np.ndarray:
-    """Nodal angles from segment (mid-segment) angles; linear operator, also for rates."""
-    n = phi.shape[-1]
-    out = np.empty(phi.shape[:-1] + (n + 1,))
-    out[..., 1:-1] = 0.5 * (phi[..., 1:] + phi[..., :-1])
-    if n >= 2:
-        out[..., 0] = 1.5 * phi[..., 0] - 0.5 * phi[..., 1]
-        out[..., -1] = 1.5 * phi[..., -1] - 0.5 * phi[..., -2]
-    else:
-        out[..., 0] = out[..., -1] = phi[..., 0]
-    return out
-
-
-def angle_kinematics(x, y, vx, vy, ax, ay) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Segment angle phi and its first two time derivatives from position kinematics."""
-    dx, dy = np.diff(x, axis=-1), np.diff(y, axis=-1)
-    dvx, dvy = np.diff(vx, axis=-1), np.diff(vy, axis=-1)
-    dax, day = np.diff(ax, axis=-1), np.diff(ay, axis=-1)
-    r2 = dx**2 + dy**2
-    phi = segment_angles(x, y)
-    w = (dx * dvy - dy * dvx) / r2
-    alpha = (dx * day - dy * dax) / r2 - 2.0 * w * (dx * dvx + dy * dvy) / r2
-    return phi, w, alpha
-
-
-def smooth_kinematics(meas: Measured, noise_std_min: float = 0.0, seed: int = 0,
-                      max_points: int = 1500, n_restarts: int = 1, spatial: bool = True,
-                      hyper_points: int = 120,
-                      spatial_fit_times: int = 40) -> Kinematics:
-    """GP prefilter in time (the project's ``crgpr.gp``) -> q, v, a on the measured times.
-
-    Per position component (x, y) one Matern-5/2 GP with a quadratic basis (paper Table II
-    state GPs) whose hyperparameters are shared by all nodes and fitted by their joint log
-    marginal likelihood (R&W Sec. 2.7) on the outputs in metres (not standardised), so that
-    the noise level sigma_n is the camera's, common to every node; the posterior mean and its
-    analytic first and second time derivatives give positions, velocities and accelerations.
-    The hyperparameters are searched on ``hyper_points`` random samples (seeded), the GP then
-    conditions on all samples.
-    theta and its rates follow analytically from the smoothed positions unless a ``theta``
-    column was given, which is then smoothed the same way.
-
-    ``spatial``: the segment angles are also smoothed along s (the rod is a smooth curve):
-    one Matern-5/2 GP with a quadratic basis in s whose hyperparameters maximise the joint
-    LML of ``spatial_fit_times`` evenly spaced frames; its posterior mean is a fixed linear
-    smoother S, applied to phi and to its time derivatives alike (so they stay consistent).
-    """
-    from crgpr.gp import fit_gp  # issue 3's GP (Matern-5/2, explicit basis, analytic derivatives)
-
-    t = meas.t
-    n_t = t.size
-    idx = np.arange(n_t)
-    if n_t > max_points:
-        idx = np.unique(np.linspace(0, n_t - 1, max_points).round().astype(int))
-    init = {"lengthscales": 0.2, "sigma_f": 0.1, "sigma_n": max(noise_std_min, 1e-3)}
-
-    def smooth(Y: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        gp = fit_gp(t[idx], Y[idx], kernel="matern52", basis="quadratic", standardise_y=False,
-                    sigma_n_min=noise_std_min or None, n_restarts=n_restarts, seed=seed + k, init=init,
-                    hyper_subset=hyper_points if idx.size > hyper_points else None)
-        m, d1, d2 = gp.predict_derivatives(t)
-        return m, d1, d2, gp.sigma_n
-
-    x, vx, ax, nx = smooth(meas.x, 0)
-    y, vy, ay, ny = smooth(meas.y, 1)
-    phi0 = None
-    if meas.theta is not None:
-        th, w, al, _ = smooth(meas.theta, 2)
-    else:
-        phi, dphi, ddphi = angle_kinematics(x, y, vx, vy, ax, ay)
-        phi0 = phi[:, 0].copy()
-        if spatial and phi.shape[1] >= 6:
-            phi, dphi, ddphi = _smooth_along_s(phi, dphi, ddphi, spatial_fit_times, seed)
-        th, w, al = node_angles(phi), node_angles(dphi), node_angles(ddphi)
-    q = np.stack([x, y, th], axis=-1)
-    v = np.stack([vx, vy, w], axis=-1)
-    a = np.stack([ax, ay, al], axis=-1)
-    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi0)
-
-
-def _smooth_along_s(phi: np.ndarray, dphi: np.ndarray, ddphi: np.ndarray, n_fit: int, seed: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Apply one GP smoother along s (hyperparameters from the joint LML of some frames)."""
-    from crgpr.gp import fit_gp
-
-    n_t, n_seg = phi.shape
-    s = (np.arange(n_seg) + 0.5) / n_seg  # segment midpoints, in units of L0
-    rows = np.unique(np.linspace(0, n_t - 1, min(n_fit, n_t)).round().astype(int))
-    hgp = fit_gp(s, phi[rows].T, kernel="matern52", basis="quadratic", standardise_y=False,
-                 n_restarts=1, seed=seed + 7, init={"lengthscales": 0.5, "sigma_f": 0.5, "sigma_n": 0.01})
-    fixed = {"sigma_f": hgp.sigma_f, "lengthscales": hgp.lengthscales, "sigma_n": hgp.sigma_n}
-    out = []
-    for arr in (phi, dphi, ddphi):
-        gp = fit_gp(s, arr.T, kernel="matern52", basis="quadratic", standardise_y=False, fixed=fixed)
-        out.append(gp.predict(s).T)
-    return out[0], out[1], out[2]
-
-
-def camera_frame(t: np.ndarray, q: np.ndarray, noise_std_m: float, rng: np.random.Generator,
-                 node_stride: int = 1) -> pd.DataFrame:
-    """Camera-like measurement of a trajectory: positions only, every ``node_stride``-th node,
-    Gaussian position noise of ``noise_std_m`` [m] on x and y. Node indices are renumbered
-    0..N_camera so that s = node * (L0 / N_camera)."""
-    qs = q[:, ::node_stride, :2]
-    n_t, n_nodes, _ = qs.shape
-    noisy = qs + noise_std_m * rng.standard_normal(qs.shape)
-    return pd.DataFrame({
-        "t": np.repeat(t, n_nodes),
-        "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t),
-        "x": noisy[..., 0].ravel(),
-        "y": noisy[..., 1].ravel(),
-    })
+    except Exception as exc:  # noqa: BLE001 - a corrupt file may fail anywhere in the decoder
+        raise MeasuredDataError(f"{path}: not a readable Parquet file: {type(exc).__name__}: {exc}") from exc
+    return validate_frame(df, str(path), L0, ds, st)

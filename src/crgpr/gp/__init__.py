@@ -4,7 +4,11 @@ Public API:
 * ``GP``, ``fit_gp``: exact GP with explicit basis, marginal-likelihood fit (``_gpr``);
 * ``smooth_series``: a 1-D Matern-5/2 smoother with analytic derivatives (the prefilter);
 * ``kernel_matrix``, ``basis_matrix_std``, ``GPError``;
-* ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-C).
+* evaluators of the posterior mean (``evaluators``): ``KernelMean`` (exact or DTC),
+  ``Table1D`` (1-D with slope), ``load_evaluator`` (from a saved model), the one compiled
+  ``kernel_sum``;
+* sparse means (``sparse``): ``select_inducing``, ``dtc_fit``;
+* ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-B, RFF sampling).
 """
 
 from crgpr.gp._gpr import (
@@ -17,7 +21,10 @@ from crgpr.gp._gpr import (
     kernel_matrix,
     smooth_series,
 )
+from crgpr.gp.evaluators import KernelMean, Table1D, load_evaluator, load_model
+from crgpr.gp.sparse import dtc_fit, select_inducing
 
 __all__ = [
-    "BASES", "GP", "GPError", "KERNELS", "basis_matrix_std", "fit_gp", "kernel_matrix", "smooth_series",
+    "BASES", "GP", "GPError", "KERNELS", "KernelMean", "Table1D", "basis_matrix_std", "dtc_fit",
+    "fit_gp", "kernel_matrix", "load_evaluator", "load_model", "select_inducing", "smooth_series",
 ]

@@ -186,6 +186,77 @@ class GP:
     _chol: Any = field(default=None, repr=False)
     _Hs: np.ndarray = field(default=None, repr=False)
     _A_chol: Any = field(default=None, repr=False)
+    # standardised training data when built by ``from_standardised`` (kept exactly)
+    _U: np.ndarray = field(default=None, repr=False)
+    _v: np.ndarray = field(default=None, repr=False)
+    name: str = "gp"
+
+    @classmethod
+    def from_standardised(cls, U: np.ndarray, v: np.ndarray, sigma_f: float, lengthscales: np.ndarray,
+                          sigma_n: float, basis: str, x_mean: np.ndarray, x_scale: np.ndarray,
+                          y_mean: float = 0.0, y_scale: float = 1.0, name: str = "gp",
+                          kernel: str = "se") -> GP:
+        """A single-output GP from standardised inputs U (n, d) and targets v (n,) with given
+        hyperparameters (standardised units); U and v are kept exactly (``Xs``, ``y``)."""
+        U = np.atleast_2d(np.asarray(U, dtype=float))
+        v = np.asarray(v, dtype=float).ravel()
+        d = U.shape[1]
+        ell = np.broadcast_to(np.asarray(lengthscales, dtype=float), (d,)).copy()
+        x_mean = np.broadcast_to(np.asarray(x_mean, dtype=float), (d,)).copy()
+        x_scale = np.broadcast_to(np.asarray(x_scale, dtype=float), (d,)).copy()
+        if v.shape[0] != U.shape[0]:
+            raise GPError(f"{name}: {U.shape[0]} inputs but {v.shape[0]} targets")
+        if not (sigma_f > 0 and sigma_n > 0 and np.all(ell > 0)):
+            raise GPError(f"{name}: sigma_f, sigma_n and lengthscales must be > 0")
+        basis_matrix_std(basis, U[:1])  # validates the name
+        gp = cls(kernel=kernel, ard=True, basis=basis, sigma_f=float(sigma_f), lengthscales=ell,
+                 sigma_n=float(sigma_n), x_mean=x_mean, x_scale=x_scale,
+                 y_mean=np.array([float(y_mean)]), y_scale=np.array([float(y_scale)]),
+                 X=x_mean + U * x_scale, Y=float(y_mean) + float(y_scale) * v, name=name)
+        gp._U, gp._v = U, v
+        return gp
+
+    # ---- the standardised single-output view (posterior samplers, crgpr.gp.sampling) ---------
+    @property
+    def Xs(self) -> np.ndarray:
+        """Standardised training inputs u = (x - x_mean) / x_scale (n, d)."""
+        return self._U if self._U is not None else self.standardise_x(self.X)
+
+    @property
+    def y(self) -> np.ndarray:
+        """Standardised targets v = (y - y_mean) / y_scale (n,) of a single-output GP."""
+        return self._v if self._v is not None else self._V()[:, 0]
+
+    @property
+    def ell(self) -> np.ndarray:
+        """Lengthscales (standardised units), one per input dimension (d,)."""
+        return np.broadcast_to(np.ravel(self.lengthscales), (self.dim,)).astype(float)
+
+    @property
+    def x_std(self) -> np.ndarray:
+        return self.x_scale
+
+    @property
+    def out_mean(self) -> float:
+        """y_mean of a single-output GP as a float."""
+        return float(np.ravel(self.y_mean)[0])
+
+    @property
+    def out_scale(self) -> float:
+        """y_scale of a single-output GP as a float."""
+        return float(np.ravel(self.y_scale)[0])
+
+    def standardise(self, x: np.ndarray) -> np.ndarray:
+        """(x - x_mean) / x_scale for inputs of any leading shape (..., d)."""
+        return (np.asarray(x, dtype=float) - self.x_mean) / self.x_scale
+
+    def basis_fn(self, U: np.ndarray) -> np.ndarray:
+        """Basis rows h(u) (n, m) at standardised inputs U."""
+        return basis_matrix_std(self.basis, np.atleast_2d(np.asarray(U, dtype=float)))
+
+    def to_output(self, g: np.ndarray) -> np.ndarray:
+        """Standardised function values -> original output units (single output)."""
+        return self.out_mean + self.out_scale * g
 
     # ---- construction ------------------------------------------------------------------------
     @property
@@ -214,6 +285,8 @@ class GP:
         return basis_matrix_std(self.basis, self.standardise_x(X))
 
     def _V(self) -> np.ndarray:
+        if self._v is not None:
+            return self._v[:, None]
         Y = self.Y if self.Y.ndim == 2 else self.Y[:, None]
         return (Y - self.y_mean) / self.y_scale
 
@@ -223,7 +296,7 @@ class GP:
             self._factorise()
 
     def _factorise(self) -> None:
-        U = self.standardise_x(self.X)
+        U = self.Xs
         ell = np.broadcast_to(self.lengthscales, (self.dim,)).astype(float)
         K = kernel_matrix(self.kernel, U, U, self.sigma_f, ell)
         K[np.diag_indices_from(K)] += self.sigma_n**2
@@ -252,7 +325,7 @@ class GP:
         """Posterior mean (and latent variance, output units^2) at inputs Xs (original units)."""
         self.ensure_factorised()
         Us = self.standardise_x(Xs)
-        U = self.standardise_x(self.X)
+        U = self.Xs
         ell = np.broadcast_to(self.lengthscales, (self.dim,)).astype(float)
         means, vars_ = [], []
         for s in range(0, Us.shape[0], chunk):

@@ -1,4 +1,4 @@
-"""Posterior function samples of the SE / ARD-SE gradient GPs (paper Sec. III, "Uncertainty
+"""Posterior function samples of the SE / ARD-SE gradient GPs (paper Sec. III-B, "Uncertainty
 Quantification via RFF Sampling").
 
 Model (Rasmussen & Williams 2006, Sec. 2.7): f(x) = h(x)^T beta + g(x), g ~ GP(0, k),
@@ -63,7 +63,9 @@ import numpy as np
 import scipy.linalg as sla
 from numba import njit
 
-from crgpr.gp import GP, basis_matrix_std, kernel_matrix
+from crgpr.gp._gpr import GP, basis_matrix_std, kernel_matrix
+from crgpr.gp.evaluators import _SE_POLY, kernel_sum_fast
+from crgpr.gp.sparse import select_inducing
 
 log = logging.getLogger(__name__)
 
@@ -74,67 +76,15 @@ def basis_matrix(Xs: np.ndarray, basis: str) -> np.ndarray:
     return basis_matrix_std(basis, np.atleast_2d(np.asarray(Xs, dtype=float)))
 
 
-@dataclass
-class GPSpec:
-    """What sampling needs from a fitted SE / ARD-SE GP, in ``crgpr.gp``'s units.
-
-    ``Xs`` (n, d) standardised training inputs u = (x - x_mean) / x_std, ``y`` (n,)
-    standardised targets v = (y - y_mean) / y_scale, kernel hyperparameters in these units
-    (``lengthscales`` (d,), all equal for isotropic SE), ``basis`` a ``crgpr.gp`` basis name.
-    In original units f(x) = y_mean + y_scale g(u) (see ``crgpr.gp``).
-    """
-
-    Xs: np.ndarray
-    y: np.ndarray
-    sigma_f: float
-    lengthscales: np.ndarray
-    sigma_n: float
-    basis: str
-    x_mean: np.ndarray
-    x_std: np.ndarray
-    y_mean: float = 0.0
-    y_scale: float = 1.0
-    name: str = "gp"
-
-    def __post_init__(self) -> None:
-        self.Xs = np.atleast_2d(np.asarray(self.Xs, dtype=float))
-        self.y = np.asarray(self.y, dtype=float).ravel()
-        d = self.Xs.shape[1]
-        self.lengthscales = np.broadcast_to(np.asarray(self.lengthscales, dtype=float), (d,)).copy()
-        self.x_mean = np.broadcast_to(np.asarray(self.x_mean, dtype=float), (d,)).copy()
-        self.x_std = np.broadcast_to(np.asarray(self.x_std, dtype=float), (d,)).copy()
-        if self.y.shape[0] != self.Xs.shape[0]:
-            raise ValueError(f"{self.name}: {self.Xs.shape[0]} inputs but {self.y.shape[0]} targets")
-        if not (self.sigma_f > 0 and self.sigma_n > 0 and np.all(self.lengthscales > 0)):
-            raise ValueError(f"{self.name}: sigma_f, sigma_n and lengthscales must be > 0")
-        basis_matrix(self.Xs[:1], self.basis)  # validates the name
-
-    @property
-    def dim(self) -> int:
-        return self.Xs.shape[1]
-
-    def standardise(self, x: np.ndarray) -> np.ndarray:
-        return (np.asarray(x, dtype=float) - self.x_mean) / self.x_std
-
-    def basis_fn(self, Xs: np.ndarray) -> np.ndarray:
-        return basis_matrix(Xs, self.basis)
-
-    def to_output(self, g: np.ndarray) -> np.ndarray:
-        """Standardised function values -> original output units."""
-        return self.y_mean + self.y_scale * g
-
-
-def spec_from_gp(gp: GP, name: str = "gp") -> GPSpec:
-    """GPSpec of a fitted single-output ``crgpr.gp.GP`` with an SE / ARD-SE kernel."""
+def spec_from_gp(gp: GP, name: str = "gp") -> GP:
+    """Check that a fitted ``crgpr.gp.GP`` can be sampled here (single output, SE / ARD-SE
+    kernel) and name it; the samplers use its standardised view (``Xs``, ``y``, ``ell``)."""
     if gp.kernel != "se":
         raise ValueError(f"{name}: RFF sampling needs an SE / ARD-SE kernel, got {gp.kernel!r}")
     if gp.multi:
         raise ValueError(f"{name}: multi-output GPs are not supported")
-    V = gp._V()[:, 0]
-    return GPSpec(gp.standardise_x(gp.X), V, float(gp.sigma_f),
-                  np.broadcast_to(np.ravel(gp.lengthscales), (gp.dim,)), float(gp.sigma_n), gp.basis,
-                  np.ravel(gp.x_mean), np.ravel(gp.x_scale), float(np.ravel(gp.y_mean)[0]),
-                  float(np.ravel(gp.y_scale)[0]), name)
+    gp.name = name
+    return gp
 
 
 def se_kernel(A: np.ndarray, B: np.ndarray, sigma_f: float, lengthscales: np.ndarray) -> np.ndarray:
@@ -150,7 +100,7 @@ def se_kernel(A: np.ndarray, B: np.ndarray, sigma_f: float, lengthscales: np.nda
 class ExactPosterior:
     """Cholesky factor of K_y and the basis-coefficient posterior of one GP (R&W Sec. 2.7)."""
 
-    spec: GPSpec
+    spec: GP
     chol: np.ndarray  # lower Cholesky factor of K_y
     H: np.ndarray  # basis at the training inputs (n, p)
     beta_bar: np.ndarray  # (p,)
@@ -164,7 +114,7 @@ class ExactPosterior:
         """Exact posterior mean and variance of f at raw inputs x (R&W eq. 2.42)."""
         sp = self.spec
         xs = sp.standardise(x)
-        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)  # (n, m)
+        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.ell)  # (n, m)
         hs = sp.basis_fn(xs)
         mean = sp.to_output(hs @ self.beta_bar + Ks.T @ self.alpha)
         v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
@@ -172,27 +122,27 @@ class ExactPosterior:
         if self.H.shape[1]:
             R = hs.T - self.H.T @ self.solve(Ks)  # (p, m)
             var = var + np.einsum("pm,pq,qm->m", R, self.beta_cov, R)
-        return mean, var * sp.y_scale**2
+        return mean, var * sp.out_scale**2
 
     def cov(self, x: np.ndarray) -> np.ndarray:
         """Exact posterior covariance matrix of f at raw inputs x (m, m)."""
         sp = self.spec
         xs = sp.standardise(x)
-        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)
+        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.ell)
         v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
-        C = se_kernel(xs, xs, sp.sigma_f, sp.lengthscales) - v.T @ v
+        C = se_kernel(xs, xs, sp.sigma_f, sp.ell) - v.T @ v
         if self.H.shape[1]:
             R = sp.basis_fn(xs).T - self.H.T @ self.solve(Ks)
             C = C + R.T @ self.beta_cov @ R
-        return C * sp.y_scale**2
+        return C * sp.out_scale**2
 
 
-def exact_posterior(spec: GPSpec, block: int = 4096) -> ExactPosterior:
+def exact_posterior(spec: GP, block: int = 4096) -> ExactPosterior:
     """Factorise K_y = K + sigma_n^2 I and the basis posterior (O(n^3), done once per GP)."""
     n = spec.Xs.shape[0]
     K = np.empty((n, n))
     for i in range(0, n, block):
-        K[i:i + block] = se_kernel(spec.Xs[i:i + block], spec.Xs, spec.sigma_f, spec.lengthscales)
+        K[i:i + block] = se_kernel(spec.Xs[i:i + block], spec.Xs, spec.sigma_f, spec.ell)
     K[np.diag_indices(n)] += spec.sigma_n**2
     chol = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
     del K
@@ -257,11 +207,11 @@ class RFF:
         return self.scale * np.cos(Xs @ self.omega.T + self.phase)
 
 
-def draw_rff(spec: GPSpec, n_features: int, rng: np.random.Generator) -> RFF:
+def draw_rff(spec: GP, n_features: int, rng: np.random.Generator) -> RFF:
     """Omega ~ N(0, diag(1 / l^2)), b ~ U[0, 2 pi] (paper Sec. III)."""
     if n_features < 1:
         raise ValueError(f"n_features must be >= 1, got {n_features}")
-    omega = rng.standard_normal((n_features, spec.dim)) / spec.lengthscales
+    omega = rng.standard_normal((n_features, spec.dim)) / spec.ell
     phase = rng.uniform(0.0, 2.0 * np.pi, n_features)
     return RFF(omega, phase, spec.sigma_f)
 
@@ -302,11 +252,11 @@ class RFFBatch:
         return out
 
 
-def draw_rff_batch(spec: GPSpec, n_samples: int, n_features: int, rng: np.random.Generator) -> RFFBatch:
+def draw_rff_batch(spec: GP, n_samples: int, n_features: int, rng: np.random.Generator) -> RFFBatch:
     """S independent RFF draws (Omega ~ N(0, diag(1 / l^2)), b ~ U[0, 2 pi])."""
     if n_features < 1:
         raise ValueError(f"n_features must be >= 1, got {n_features}")
-    omega = rng.standard_normal((n_samples, n_features, spec.dim)) / spec.lengthscales
+    omega = rng.standard_normal((n_samples, n_features, spec.dim)) / spec.ell
     phase = rng.uniform(0.0, 2.0 * np.pi, (n_samples, n_features))
     return RFFBatch(np.ascontiguousarray(omega), np.ascontiguousarray(phase), spec.sigma_f)
 
@@ -321,40 +271,6 @@ def _cos_poly(t):
     for k in range(11, 0, -1):
         p = 1.0 - r2 / ((2 * k - 1) * (2 * k)) * p
     return p
-
-
-@njit(cache=True, fastmath=True)
-def _exp_neg_half(r2):
-    """exp(-r2 / 2) for r2 >= 0: r2 clipped at 80 (exp(-40) = 4e-18, i.e. 0 for a kernel),
-    exp(u / 64)^64 with a degree-12 Taylor polynomial (relative error < 1e-10): vectorisable."""
-    u = -0.5 * min(r2, 80.0) * 0.015625
-    p = 1.0
-    for k in range(12, 0, -1):
-        p = 1.0 + u / k * p
-    for _ in range(6):
-        p = p * p
-    return p
-
-
-@njit(cache=True, fastmath=True)
-def _kernel_sum(xl, ZlT, a, sf2, out):
-    """out[s, i] += sf2 sum_m a[s, m] exp(-|xl[s, i] - Zl[m]|^2 / 2) (lengthscale-scaled inputs;
-    ZlT (d, M) transposed so that the inner loops run over contiguous inducing points)."""
-    S, m, d = xl.shape
-    M = ZlT.shape[1]
-    r2 = np.empty(M)
-    for s in range(S):
-        for i in range(m):
-            r2[:] = 0.0
-            for k in range(d):
-                xk = xl[s, i, k]
-                for j in range(M):
-                    dd = xk - ZlT[k, j]
-                    r2[j] += dd * dd
-            acc = 0.0
-            for j in range(M):
-                acc += a[s, j] * _exp_neg_half(r2[j])
-            out[s, i] += sf2 * acc
 
 
 @njit(cache=True, fastmath=True)
@@ -415,7 +331,7 @@ class PathwiseSamples:
         """All S samples at raw inputs x (m, d) -> (S, m), exact (O(n m))."""
         sp = self.post.spec
         xs = sp.standardise(np.atleast_2d(x))
-        Ks = se_kernel(xs, sp.Xs, sp.sigma_f, sp.lengthscales)  # (m, n)
+        Ks = se_kernel(xs, sp.Xs, sp.sigma_f, sp.ell)  # (m, n)
         out = self.beta @ sp.basis_fn(xs).T + self.rff.prior(xs, self.w) + self.alpha @ Ks.T
         return sp.to_output(out)
 
@@ -452,17 +368,17 @@ def pathwise_covariance(post: ExactPosterior, rff: RFF, x: np.ndarray) -> np.nda
     """
     sp = post.spec
     xs = sp.standardise(np.atleast_2d(x))
-    Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.lengthscales)  # (n, m)
+    Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.ell)  # (n, m)
     C = post.solve(Ks)  # (n, m)
     P = rff(xs).T - rff(sp.Xs).T @ C  # (D, m)
     cov = P.T @ P + sp.sigma_n**2 * C.T @ C
     if post.H.shape[1]:
         R = sp.basis_fn(xs).T - post.H.T @ C
         cov = cov + R.T @ post.beta_cov @ R
-    return cov * sp.y_scale**2
+    return cov * sp.out_scale**2
 
 
-def weight_space_samples(spec: GPSpec, n_samples: int, n_features: int,
+def weight_space_samples(spec: GP, n_samples: int, n_features: int,
                          rng: np.random.Generator) -> tuple[RFF, np.ndarray, np.ndarray]:
     """The paper's sampler: Bayesian linear regression on [h(x), phi(x)], w ~ N(0, I), flat
     prior on beta; returns (rff, beta (S, p), w (S, D)). For comparison only (variance
@@ -483,27 +399,10 @@ def weight_space_samples(spec: GPSpec, n_samples: int, n_features: int,
 # compression of the update term for the rollout
 
 
-def pivoted_cholesky_inducing(spec: GPSpec, n_inducing: int, tol: float = 1e-10) -> np.ndarray:
-    """Indices of M training inputs chosen by greedy pivoted Cholesky of K_XX (largest
-    remaining conditional variance first); stops early when the residual trace < tol sigma_f^2."""
-    Xs = spec.Xs
-    n = Xs.shape[0]
-    m = min(n_inducing, n)
-    diag = np.full(n, spec.sigma_f**2)
-    L = np.zeros((m, n))
-    piv: list[int] = []
-    for j in range(m):
-        i = int(np.argmax(diag))
-        if diag[i] <= tol * spec.sigma_f**2:
-            break
-        piv.append(i)
-        row = se_kernel(Xs[i:i + 1], Xs, spec.sigma_f, spec.lengthscales)[0]
-        row -= L[:j, i] @ L[:j]
-        row /= math.sqrt(diag[i])
-        L[j] = row
-        diag -= row**2
-        diag[i] = 0.0
-    return np.array(piv, dtype=int)
+def inducing_indices(spec: GP, n_inducing: int, seed: int) -> np.ndarray:
+    """Indices of M training inputs for the inducing set: ``crgpr.gp.select_inducing``
+    (farthest points in lengthscale-scaled inputs, the selector of the rollout's DTC mean)."""
+    return select_inducing(spec.Xs / spec.ell, n_inducing, seed)
 
 
 @dataclass
@@ -568,7 +467,8 @@ class CompressedSamples:
         S, m, d = xs.shape
         out = np.empty((S, m))
         _rff_sum_t(xs, self._omegaT, self.phase, self.w, self._scale, out)
-        _kernel_sum(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2, out)
+        kernel_sum_fast(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2,
+                        _SE_POLY, out)
         if self.beta.shape[1]:
             H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
             out += np.einsum("smp,sp->sm", H, self.beta)
@@ -584,9 +484,9 @@ def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8
     sp = post.spec
     Z = sp.Xs[inducing]
     M = Z.shape[0]
-    Kzz = se_kernel(Z, Z, sp.sigma_f, sp.lengthscales)
+    Kzz = se_kernel(Z, Z, sp.sigma_f, sp.ell)
     Lz = np.linalg.cholesky(Kzz + 1e-12 * sp.sigma_f**2 * np.eye(M))
-    Kxz = se_kernel(sp.Xs, Z, sp.sigma_f, sp.lengthscales)  # (n, M)
+    Kxz = se_kernel(sp.Xs, Z, sp.sigma_f, sp.ell)  # (n, M)
     A = np.vstack([Kxz, ridge * sp.sigma_n * Lz.T])
     del Kxz
     U = samples.update_at_train()  # (S, n)
@@ -594,8 +494,8 @@ def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8
     Q, R = np.linalg.qr(A, mode="reduced")
     a = sla.solve_triangular(R, Q.T @ rhs, check_finite=False).T
     return CompressedSamples(samples.rff.omega, samples.rff.phase, samples.w, Z, a, samples.beta,
-                             sp.sigma_f, sp.lengthscales, sp.x_mean, sp.x_std, sp.basis, sp.y_mean,
-                             sp.y_scale)
+                             sp.sigma_f, sp.ell, sp.x_mean, sp.x_std, sp.basis, sp.out_mean,
+                             sp.out_scale)
 
 
 @dataclass
@@ -610,7 +510,7 @@ class SparsePosterior:
     + k** - Q**. With Z = X it is the exact posterior of R&W Sec. 2.7.
     """
 
-    spec: GPSpec
+    spec: GP
     Z: np.ndarray  # (M, d) standardised
     LZ: np.ndarray  # lower Cholesky factor of K_ZZ (+ jitter)
     RP: np.ndarray  # upper triangular, P = RP^T RP
@@ -623,7 +523,7 @@ class SparsePosterior:
     def features(self, xs: np.ndarray) -> np.ndarray:
         """[h(u), psi(u)] at standardised inputs (m, p + M)."""
         sp = self.spec
-        Kxz = se_kernel(xs, self.Z, sp.sigma_f, sp.lengthscales)
+        Kxz = se_kernel(xs, self.Z, sp.sigma_f, sp.ell)
         psi = sla.solve_triangular(self.LZ, Kxz.T, lower=True, check_finite=False).T
         return np.hstack([sp.basis_fn(xs), psi])
 
@@ -636,7 +536,7 @@ class SparsePosterior:
         G = sla.solve_triangular(self.RP, F.T, trans="T", check_finite=False)
         psi = F[:, self.n_basis:]
         var = (G * G).sum(0) + sp.sigma_f**2 - (psi * psi).sum(1)
-        return sp.to_output(mean), var * sp.y_scale**2
+        return sp.to_output(mean), var * sp.out_scale**2
 
     def mean_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
         """(beta_bar, a_bar): the posterior mean as h(u)^T beta_bar + k(u, Z) a_bar."""
@@ -660,16 +560,16 @@ class SparsePosterior:
         a_w = sla.cho_solve((self.LZ, True), rff.prior(self.Z, w).T, check_finite=False)
         a = (a_v - a_w).T
         return CompressedSamples(rff.omega, rff.phase, w, self.Z.copy(), a, beta, sp.sigma_f,
-                                 sp.lengthscales, sp.x_mean, sp.x_std, sp.basis, sp.y_mean, sp.y_scale)
+                                 sp.ell, sp.x_mean, sp.x_std, sp.basis, sp.out_mean, sp.out_scale)
 
 
-def sparse_posterior(spec: GPSpec, Z: np.ndarray, jitter: float = 1e-10, block: int = 8192
+def sparse_posterior(spec: GP, Z: np.ndarray, jitter: float = 1e-10, block: int = 8192
                      ) -> SparsePosterior:
     """Factorise the DTC posterior on standardised inducing inputs Z (see SparsePosterior);
     the stacked system [F / sigma_n; diag(0, I)] is reduced by blocked QR for stability."""
     Z = np.atleast_2d(np.asarray(Z, dtype=float))
     M = Z.shape[0]
-    LZ = np.linalg.cholesky(se_kernel(Z, Z, spec.sigma_f, spec.lengthscales)
+    LZ = np.linalg.cholesky(se_kernel(Z, Z, spec.sigma_f, spec.ell)
                             + jitter * spec.sigma_f**2 * np.eye(M))
     p = spec.basis_fn(spec.Xs[:1]).shape[1]
     prior = np.zeros((M, p + M))
@@ -679,7 +579,7 @@ def sparse_posterior(spec: GPSpec, Z: np.ndarray, jitter: float = 1e-10, block: 
     n = spec.Xs.shape[0]
     for i in range(0, n, block):
         xs = spec.Xs[i:i + block]
-        Kxz = se_kernel(xs, Z, spec.sigma_f, spec.lengthscales)
+        Kxz = se_kernel(xs, Z, spec.sigma_f, spec.ell)
         psi = sla.solve_triangular(LZ, Kxz.T, lower=True, check_finite=False).T
         F = np.hstack([spec.basis_fn(xs), psi]) / spec.sigma_n
         Q, R = np.linalg.qr(np.vstack([R, F]), mode="reduced")

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.discovery.measured import Kinematics, Measured, angle_kinematics, node_angles, smooth_kinematics
+from crgpr.discovery.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
+from crgpr.discovery.measured import Measured, MeasuredDataError
 from crgpr.learning.prefilter import fd_time_derivatives, output_indices, spatial_derivatives
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import STATE_NAMES
@@ -59,6 +60,18 @@ class LearnSettings:
                    n_t_out=int(c["n_t_out"]))
 
 
+def check_node_grid(meas: Measured, params: RodParams) -> None:
+    """Learning needs every node of the model grid (s_i = i ds) at every frame, none missing."""
+    if meas.s.size != params.N + 1 or not np.allclose(meas.s, params.s, atol=1e-9 * params.L0):
+        raise MeasuredDataError(f"{meas.source}: markers at s = {np.round(meas.s, 6).tolist()} m; "
+                                f"crgpr learn needs one per node of the model grid "
+                                f"(N + 1 = {params.N + 1}, s = i ds)")
+    bad = ~(np.isfinite(meas.x) & np.isfinite(meas.y))
+    if bad.any():
+        raise MeasuredDataError(f"{meas.source}: {int(bad.sum())} missing (NaN) or screened-out "
+                                "positions; crgpr learn needs complete frames")
+
+
 def fd_kinematics(meas: Measured) -> Kinematics:
     """Raw positions, central differences in time, angles and their rates from the raw positions."""
     h = meas.dt
@@ -69,19 +82,24 @@ def fd_kinematics(meas: Measured) -> Kinematics:
     q = np.stack([x, y, node_angles(phi)], axis=-1)
     v = np.stack([vx, vy, node_angles(w)], axis=-1)
     a = np.stack([ax, ay, node_angles(al)], axis=-1)
-    return Kinematics(meas.t, q, v, a, float("nan"), phi[:, 0].copy())
+    return Kinematics(meas.t, q, v, a, float("nan"), phi[:, 0].copy(), meas.s.copy())
 
 
-def gp_kinematics(meas: Measured, st: LearnSettings, seed: int) -> Kinematics:
-    """The GP prefilter of the positions (noise level fitted on the data), see module docstring."""
-    return smooth_kinematics(meas, seed=seed, max_points=st.gp_max_points, spatial=st.spatial_smoothing,
+def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int) -> Kinematics:
+    """The GP prefilter of the positions (noise level fitted on the data), see module docstring.
+
+    ``discovery.kinematics.smooth_kinematics`` on the model grid; its spatial step always
+    smooths the angles (camera.learn.spatial_smoothing is no longer separate).
+    """
+    return smooth_kinematics(meas, params, seed=seed, max_points=st.gp_max_points,
                              hyper_points=st.hyper_points)
 
 
-def kinematics(meas: Measured, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
+def kinematics(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
     """Positions, velocities and accelerations (x, y, theta) by the chosen prefilter."""
+    check_node_grid(meas, params)
     if prefilter == "gp":
-        return gp_kinematics(meas, st, seed)
+        return gp_kinematics(meas, params, st, seed)
     if prefilter == "fd":
         return fd_kinematics(meas)
     raise ValueError(f"unknown prefilter {prefilter!r}; expected one of {PREFILTERS}")
@@ -93,7 +111,7 @@ def clamp_base(kin: Kinematics) -> Kinematics:
     q[:, 0, :] = q[:, 0, :].mean(axis=0)
     v[:, 0, :] = 0.0
     a[:, 0, :] = 0.0
-    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle)
+    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers)
 
 
 def kept_frames(t: np.ndarray, edge_trim_s: float, n_out: int) -> np.ndarray:
@@ -135,7 +153,7 @@ def state_arrays(kin: Kinematics, params: RodParams, idx: np.ndarray | None = No
 def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int
                        ) -> tuple[dict[str, np.ndarray], dict]:
     """Measured positions -> training arrays and a report (noise level, frames used)."""
-    kin = clamp_base(kinematics(meas, prefilter, st, seed))
+    kin = clamp_base(kinematics(meas, params, prefilter, st, seed))
     idx = kept_frames(kin.t, st.edge_trim_s, st.n_t_out)
     arr = state_arrays(kin, params, idx)
     if not all(np.all(np.isfinite(v)) for v in arr.values()):

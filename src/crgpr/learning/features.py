@@ -1,8 +1,8 @@
-"""Inputs and targets of the gradient GPs (paper Sec. III-B step 3, eqs. (estimated_variational_derivative),
+"""Inputs and targets of the gradient GPs (paper Sec. III-B step 3, eqs. (13)-(16),
 GPR 1-6), shared by training (gradient_models.py) and rollouts (learned.py).
 
-Targets. With J - R of eq. (JR) and G u = [0, 0, 0, 0, -rho A g, 0] (gravity is the input):
-    H_p  = dq/dt                                  (rows 1-3 of eq. (ph-compact))
+Targets. With J - R of eq. (8) and G u = [0, 0, 0, 0, -rho A g, 0] (gravity is the input):
+    H_p  = dq/dt                                  (rows 1-3 of eq. (9))
     H_q  = -(dp/dt - G u) - zeta H_p              (rows 4-6)
 per node and unit length. In the discrete rod (rod.py) the nodal force is
 F_x,i = q_x,i - q_x,i-1 with q on segments and q_N = 0 at the free tip, and F_x,i = -w_i ds H_x,i;
@@ -46,6 +46,13 @@ PAPER_Q_FEATURES = ("theta_bar", "dx_ds", "dy_ds")
 PAPER_THETA_FEATURES = ("theta_i", "theta_im1", "theta_ip1", "d2theta_ds2", "dx_ds", "dy_ds")
 OBJ_N_FEATURES = ("nu1", "nu2", "kappa")
 OBJ_M_FEATURES = ("kappa", "kappa_jm1", "kappa_jp1", "nu1", "nu2")
+
+
+def theta_center(theta: np.ndarray) -> float:
+    """Centre of the training range of theta (n_t, N+1) over the free nodes 1..N: the middle of
+    the 2 pi window that ``wrap_shift`` maps angle features into."""
+    th = theta[:, 1:]
+    return 0.5 * (float(th.min()) + float(th.max()))
 
 
 def wrap_shift(theta: np.ndarray, center: float | None) -> np.ndarray:
@@ -102,7 +109,7 @@ def objective_m_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float
 
 
 def hz_targets(arr: dict[str, np.ndarray], params: RodParams) -> np.ndarray:
-    """H_z = (J - R)^-1 (dz/dt - G u) per node (n_t, N+1, 6), eq. (estimated_variational_derivative)."""
+    """H_z = (J - R)^-1 (dz/dt - G u) per node (n_t, N+1, 6), eq. (13)."""
     hz = np.empty((*arr["x"].shape, 6))
     hp = np.stack([arr["dx_dt"], arr["dy_dt"], arr["dtheta_dt"]], axis=-1)
     dp = np.stack([arr["dp_x_dt"], arr["dp_y_dt"], arr["dp_theta_dt"]], axis=-1)

@@ -1,4 +1,4 @@
-"""Stage 2: the gradient GPs of Table II (paper Sec. III-B step 3) and the objective variant.
+"""Step 3: the gradient GPs of Table II (paper Sec. III-B step 3) and the objective variant.
 
 One rule per model writes ``results/models/{prefilter}/{model}.npz`` + ``.json``:
 
@@ -28,23 +28,20 @@ against the exact posterior mean is measured here and stored in the model's JSON
 
 from __future__ import annotations
 
-import argparse
 import logging
-import math
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
-import scipy.linalg as sla
 
-from crgpr.config import ConfigError, load_config, rod_params
-from crgpr.gp import GP, basis_matrix_std, fit_gp, kernel_matrix
-from crgpr.io import load_npz, write_csv
+from crgpr.config import ConfigError, rod_params
+from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
 from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
+from crgpr.seeds import stage_seed
 
 log = logging.getLogger(__name__)
 
@@ -53,21 +50,6 @@ OBJECTIVE_MODELS: tuple[str, ...] = ("obj_n1", "obj_n2", "obj_m")
 ALL_MODELS = PAPER_MODELS + OBJECTIVE_MODELS
 MOMENTUM_MODELS = ("dH_dp_x", "dH_dp_y", "dH_dp_theta")
 
-# Paper Table II, for table2_hyperparameters.csv
-PAPER_TABLE2: dict[str, dict[str, Any]] = {
-    "q_x": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 2.28, "ell": "[3.22, 2.47, 181]",
-            "sigma_n": 3.4e-2, "n": 7910},
-    "q_y": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 1.66, "ell": "[3.11, 1.84, 131]",
-            "sigma_n": 3.4e-2, "n": 8652},
-    "dH_dtheta": {"kernel": "ARD-SE", "basis": "Constant", "sigma_f": 1.14,
-                  "ell": "[0.97, 1.86, 21.7, 4.28, 2.04, 51.1]", "sigma_n": 1.8e-3, "n": 18975},
-    "dH_dp_x": {"kernel": "SE", "basis": "None", "sigma_f": 134.7, "ell": "61.8", "sigma_n": 9.3e-3,
-                "n": 966},
-    "dH_dp_y": {"kernel": "SE", "basis": "None", "sigma_f": 698.3, "ell": "391.1", "sigma_n": 1.1e-2,
-                "n": 966},
-    "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
-                    "n": 980},
-}
 FEATURE_NAMES: dict[str, tuple[str, ...]] = {
     "q_x": ft.PAPER_Q_FEATURES, "q_y": ft.PAPER_Q_FEATURES, "dH_dtheta": ft.PAPER_THETA_FEATURES,
     "dH_dp_x": ("p_x",), "dH_dp_y": ("p_y",), "dH_dp_theta": ("p_theta",),
@@ -85,12 +67,6 @@ def model_spec(cfg: dict[str, Any], name: str) -> dict[str, Any]:
     if name in OBJECTIVE_MODELS:
         return dict(gm["objective_models"][name.removeprefix("obj_")])
     raise ConfigError(f"unknown gradient model {name!r}; expected one of {ALL_MODELS}")
-
-
-def theta_center(arr: dict[str, np.ndarray]) -> float:
-    """Centre of the training range of theta over the free nodes (for the 2 pi window)."""
-    th = arr["theta"][:, 1:]
-    return 0.5 * (float(th.min()) + float(th.max()))
 
 
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
@@ -112,7 +88,7 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         tgt = hz[:, 1:, 2]
     elif name in MOMENTUM_MODELS:
         k = MOMENTUM_MODELS.index(name)
-        X = np.stack([arr[("p_x", "p_y", "p_theta")[k]]], axis=-1)[:, 1:]
+        X = np.stack([arr[STATE_NAMES[3 + k]]], axis=-1)[:, 1:]
         tgt = hz[:, 1:, 3 + k]
     elif name in OBJECTIVE_MODELS:
         sg = ft.segments(x, y, th, ds)
@@ -136,54 +112,6 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
 # ---------------------------------------------------------------------------------------------
 # approximations of the posterior mean for the rollouts
 # ---------------------------------------------------------------------------------------------
-def farthest_points(P: np.ndarray, M: int, seed: int) -> np.ndarray:
-    """Indices of M rows of P chosen by greedy farthest-point sampling (seeded start)."""
-    n = P.shape[0]
-    if M >= n:
-        return np.arange(n)
-    rng = np.random.default_rng(seed)
-    idx = np.empty(M, dtype=int)
-    idx[0] = rng.integers(n)
-    d2 = ((P - P[idx[0]]) ** 2).sum(1)
-    for k in range(1, M):
-        idx[k] = int(np.argmax(d2))
-        d2 = np.minimum(d2, ((P - P[idx[k]]) ** 2).sum(1))
-    return idx
-
-
-def dtc_fit(gp: GP, X: np.ndarray, V: np.ndarray, M: int, seed: int) -> dict[str, np.ndarray]:
-    """DTC/SoR mean with jointly estimated basis coefficients (standardised units)."""
-    U = gp.standardise_x(X)
-    ell = np.broadcast_to(gp.lengthscales, (gp.dim,)).astype(float)
-    zi = farthest_points(U / ell, M, seed)
-    Z = U[zi]
-    Kxz = kernel_matrix(gp.kernel, U, Z, gp.sigma_f, ell)
-    Kzz = kernel_matrix(gp.kernel, Z, Z, gp.sigma_f, ell)
-    H = basis_matrix_std(gp.basis, U)
-    m = H.shape[1]
-    Phi = np.hstack([H, Kxz])
-    A = Phi.T @ Phi
-    A[m:, m:] += gp.sigma_n**2 * (Kzz + 1e-8 * gp.sigma_f**2 * np.eye(len(zi)))
-    A[np.diag_indices_from(A)] += 1e-10 * np.trace(A) / A.shape[0]
-    sol = sla.solve(A, Phi.T @ V, assume_a="pos")
-    return {"dtc_Z": Z, "dtc_beta": sol[:m], "dtc_w": sol[m:]}
-
-
-def dtc_predict(gp_like: dict[str, Any], Xs: np.ndarray) -> np.ndarray:
-    """Evaluate a DTC approximation (dict with hyperparameters and dtc arrays) at Xs."""
-    U = (Xs - gp_like["x_mean"]) / gp_like["x_scale"]
-    ell = np.broadcast_to(gp_like["lengthscales"], (U.shape[1],)).astype(float)
-    K = kernel_matrix(gp_like["kernel"], U, gp_like["dtc_Z"], gp_like["sigma_f"], ell)
-    v = K @ gp_like["dtc_w"] + basis_matrix_std(gp_like["basis"], U) @ gp_like["dtc_beta"]
-    return gp_like["y_mean"] + gp_like["y_scale"] * np.ravel(v)
-
-
-def _gp_like(gp: GP, approx: dict[str, np.ndarray]) -> dict[str, Any]:
-    return {"kernel": gp.kernel, "basis": gp.basis, "sigma_f": gp.sigma_f,
-            "lengthscales": np.ravel(gp.lengthscales), "x_mean": gp.x_mean, "x_scale": gp.x_scale,
-            "y_mean": float(gp.y_mean[0]), "y_scale": float(gp.y_scale[0]), **approx}
-
-
 def _err(a: np.ndarray, b: np.ndarray, scale: float) -> dict[str, float]:
     d = a - b
     return {"rmse": float(np.sqrt(np.mean(d**2))), "max_abs": float(np.abs(d).max()),
@@ -218,17 +146,17 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
         gp.ensure_factorised()
         ell = float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0])
         grid = np.linspace(Xn.min() - 6 * ell, Xn.max() + 6 * ell, 4001)
-        table = gp.predict(grid[:, None])
-        arrays = {"table_x": grid, "table_y": table}
+        tab = Table1D.from_gp(gp, grid)
+        arrays = {"table_x": grid, "table_y": tab.ty}
         xc = rng.uniform(grid[0], grid[-1], int(gm["check_points"]))
-        approx = np.interp(xc, grid, table, left=0.0, right=0.0)
+        approx = tab(xc)
         report["approximation"] = "exact mean tabulated (4001 points, linear interpolation)"
         report["approx_error_vs_exact"] = _err(approx, gp.predict(xc[:, None]), ystd)
     else:
         V = ((yn - gp.y_mean[0]) / gp.y_scale[0])[:, None]
         M = int(gm["inducing"])
         arrays = dtc_fit(gp, Xn, V, M, seed)
-        like = _gp_like(gp, arrays)
+        like = KernelMean.dtc(gp, arrays["dtc_Z"], arrays["dtc_w"], arrays["dtc_beta"])
         n_chk = min(int(gm["check_points"]), n)
         ci = rng.choice(n, size=n_chk, replace=False)
         limit = int(gm["exact_check_max_n"])
@@ -236,7 +164,7 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
             gp.ensure_factorised()
             exact = gp.predict(Xn[ci])
             report["approx_check"] = f"exact posterior mean over all n = {n} points"
-            report["approx_error_vs_exact"] = _err(dtc_predict(like, Xn[ci]), exact, ystd)
+            report["approx_error_vs_exact"] = _err(like(Xn[ci]), exact, ystd)
         else:
             si = np.sort(rng.choice(n, size=limit, replace=False))
             sub = fit_gp(Xn[si], yn[si], kernel=gp.kernel, basis=gp.basis, ard=gp.ard,
@@ -246,24 +174,20 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
             sub.x_mean, sub.x_scale = gp.x_mean, gp.x_scale
             sub._factorise()
             Vs = ((yn[si] - gp.y_mean[0]) / gp.y_scale[0])[:, None]
-            sub_like = _gp_like(gp, dtc_fit(gp, Xn[si], Vs, M, seed))
+            sub_arr = dtc_fit(gp, Xn[si], Vs, M, seed)
+            sub_like = KernelMean.dtc(gp, sub_arr["dtc_Z"], sub_arr["dtc_w"], sub_arr["dtc_beta"])
             cj = rng.choice(limit, size=min(n_chk, limit), replace=False)
             report["approx_check"] = (f"n = {n} > exact_check_max_n: exact vs DTC (M = {M}) both "
                                       f"conditioned on a random subset of {limit} points")
-            report["approx_error_vs_exact"] = _err(dtc_predict(sub_like, Xn[si][cj]), sub.predict(Xn[si][cj]),
+            report["approx_error_vs_exact"] = _err(sub_like(Xn[si][cj]), sub.predict(Xn[si][cj]),
                                                    ystd)
         report["approximation"] = f"DTC mean, M = {len(arrays['dtc_Z'])} farthest-point inducing inputs"
-        report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((dtc_predict(like, Xn) - yn) ** 2)) / ystd)
+        report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((like(Xn) - yn) ** 2)) / ystd)
     report["target_std"] = ystd
     report["seconds"] = time.perf_counter() - t0
     log.info("%s: n = %d, %s, error vs exact %s, %.1f s", name, n, report["approximation"],
              report["approx_error_vs_exact"], report["seconds"])
     return gp, arrays, report
-
-
-def model_seed(cfg: dict[str, Any], name: str) -> int:
-    """Seed of one gradient model (subsets, restarts, inducing inputs)."""
-    return int(cfg["seed"]) + 2000 + ALL_MODELS.index(name)
 
 
 def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray], params: RodParams,
@@ -279,11 +203,11 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     spec = model_spec(cfg, name)
     if arr["x"].shape[1] != params.N + 1:
         raise ValueError(f"{source}: {arr['x'].shape[1]} nodes but the rod has N + 1 = {params.N + 1}")
-    center = theta_center(arr) if gm["theta_wrap"] else None
+    center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
     X, y = training_data(arr, params, name, center, trim_ends)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError(f"{source}: non-finite features or targets for model {name}")
-    seed = model_seed(cfg, name)
+    seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
     meta = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
             "prefilter": prefilter_method, "source": str(source), "seed": seed, **report,
@@ -299,58 +223,3 @@ def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_ste
     return train_model_arrays(cfg, name, arr, rod_params(cfg), out_stem, str(prefiltered), prefilter_method)
 
 
-def load_model_arrays(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """npz arrays and JSON metadata of a saved gradient model (no pickle, no factorisation)."""
-    import json
-
-    stem = Path(stem)
-    js = stem.with_suffix(".json")
-    if not js.exists():
-        raise FileNotFoundError(f"{js}: gradient model file missing")
-    return load_npz(stem.with_suffix(".npz")), json.loads(js.read_text())
-
-
-def table2(model_jsons: list[str | Path], out: str | Path) -> pd.DataFrame:
-    """Table II: our hyperparameters (output/input units) beside the paper's."""
-    import json
-
-    rows = []
-    for p in model_jsons:
-        meta = json.loads(Path(p).read_text())
-        name = meta["name"]
-        paper = PAPER_TABLE2.get(name, {})
-        rows.append({
-            "model": name, "prefilter": meta.get("prefilter"),
-            "kernel": ("ARD-" if meta["ard"] else "") + meta["kernel"].upper(), "basis": meta["basis"],
-            "features": " ".join(meta["features"]),
-            "sigma_f": meta["sigma_f"],
-            "lengthscales": "[" + ", ".join(f"{v:.4g}" for v in meta["lengthscales"]) + "]",
-            "sigma_n": meta["sigma_n"],
-            "sigma_n_lower_bound": meta["info"].get("sigma_n_lower_std", math.nan) * meta["y_scale"][0],
-            "n": meta["n"], "n_hyper": meta["hyper_subset"],
-            "approx_rmse_over_target_std": meta["approx_error_vs_exact"]["rmse_over_target_std"],
-            "paper_kernel": paper.get("kernel", ""), "paper_basis": paper.get("basis", ""),
-            "paper_sigma_f": paper.get("sigma_f", math.nan), "paper_lengthscales": paper.get("ell", ""),
-            "paper_sigma_n": paper.get("sigma_n", math.nan), "paper_n": paper.get("n", math.nan),
-        })
-    df = pd.DataFrame(rows)
-    write_csv(df, out)
-    return df
-
-
-def rule(cfg: dict[str, Any], model: str, prefilter_method: str, prefiltered: str, out_npz: str) -> None:
-    """Snakemake entry point of rule ``gradient_model``."""
-    train_model(cfg, model, prefiltered, Path(out_npz).with_suffix(""), prefilter_method)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("train-gradient-model", help="stage 2: fit one gradient GP of Table II",
-                       description="Fit one gradient GP (targets H_z of eq. "
-                                   "(estimated_variational_derivative)) from a prefilter Parquet file.")
-    p.add_argument("--model", choices=ALL_MODELS, required=True)
-    p.add_argument("--prefiltered", required=True, help="prefilter Parquet file (stage 1)")
-    p.add_argument("--prefilter-method", default="gp", choices=("gp", "fd"))
-    p.add_argument("--out", required=True, help="output stem: writes STEM.npz and STEM.json")
-    p.add_argument("--config", default="config.yaml")
-    p.set_defaults(func=lambda a: train_model(load_config(a.config), a.model, a.prefiltered, a.out,
-                                              a.prefilter_method))

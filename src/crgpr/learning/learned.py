@@ -1,4 +1,4 @@
-"""Stage 3: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (nonpde)).
+"""Step 4: the learned CR-GPR model H_z_hat and its rollouts (paper Sec. III-B step 4, eq. (17)).
 
     dz/dt = (J - R) H_z_hat(z) + G u
 
@@ -12,8 +12,8 @@ Methods (config ``rollouts.methods``):
 * ``cr_gpr_objective``: local resultants n1, n2, m from frame-indifferent strains, rotated
   back (q_x = n1 cos theta_bar - n2 sin theta_bar, ...), and the discrete moment balance
   -dH/dtheta_i = (m_i - m_{i-1} + ds/2 (c_i + c_{i-1})) / (w_i ds), c = nu1 n2 - nu2 n1.
-The GP means are evaluated by their measured approximations (gradient_models.py), compiled
-with numba and batched over the nodes.
+The GP means are evaluated by the evaluators of the saved models (``crgpr.gp.load_evaluator``:
+the DTC mean or the 1-D table whose error against the exact mean gradient_models.py measured).
 
 Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
 dissipated power, paper Fig. 5), and the learned stored energy by the path integral
@@ -24,7 +24,6 @@ far the learned force field is from a gradient field plus the time discretisatio
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import time
@@ -34,99 +33,18 @@ from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
-from crgpr.config import ConfigError, load_config, rod_params, sim_settings
+from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_json, write_parquet
 from crgpr.learning import features as ft
-from crgpr.learning.gradient_models import MOMENTUM_MODELS, load_model_arrays
+from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, node_weights, straight_rod
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 log = logging.getLogger(__name__)
-
-_BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
-_KERNEL_ID = {"se": 0, "matern52": 1}
-
-
-@njit(cache=True)
-def _dtc_eval(X, x_mean, x_scale, ell, Zl, w, sf2, beta, basis_id, kernel_id, y_mean, y_scale, out):
-    """out[i] = y_mean + y_scale (sum_m w_m k(u_i, z_m) + h(u_i)^T beta), u = (x - x_mean) / x_scale."""
-    n, d = X.shape
-    M = Zl.shape[0]
-    u = np.empty(d)
-    ul = np.empty(d)
-    for i in range(n):
-        for k in range(d):
-            u[k] = (X[i, k] - x_mean[k]) / x_scale[k]
-            ul[k] = u[k] / ell[k]
-        acc = 0.0
-        for m in range(M):
-            r2 = 0.0
-            for k in range(d):
-                dd = ul[k] - Zl[m, k]
-                r2 += dd * dd
-            if kernel_id == 0:
-                acc += w[m] * math.exp(-0.5 * r2)
-            else:
-                r = math.sqrt(r2)
-                s5r = 2.23606797749979 * r
-                acc += w[m] * (1.0 + s5r + (5.0 / 3.0) * r2) * math.exp(-s5r)
-        acc *= sf2
-        if basis_id >= 1:
-            acc += beta[0]
-        if basis_id >= 2:
-            for k in range(d):
-                acc += beta[1 + k] * u[k]
-        if basis_id >= 3:
-            for k in range(d):
-                acc += beta[1 + d + k] * u[k] * u[k]
-        out[i] = y_mean + y_scale * acc
-
-
-class Approx:
-    """Compiled evaluator of one saved gradient model's rollout approximation."""
-
-    def __init__(self, stem: str | Path):
-        arr, meta = load_model_arrays(stem)
-        self.name = meta["name"]
-        self.meta = meta
-        self.dim = int(meta["dim"])
-        self.y_mean = float(np.ravel(arr["y_mean"])[0])
-        self.y_scale = float(np.ravel(arr["y_scale"])[0])
-        if "table_x" in arr:
-            self.kind = "table"
-            self.tx, self.ty = arr["table_x"], arr["table_y"]
-            self.tslope = np.diff(self.ty) / np.diff(self.tx)
-        elif "dtc_Z" in arr:
-            self.kind = "dtc"
-            if meta["basis"] not in _BASIS_ID or meta["kernel"] not in _KERNEL_ID:
-                raise ValueError(f"{stem}: unsupported kernel/basis {meta['kernel']}/{meta['basis']}")
-            ell = np.broadcast_to(np.ravel(arr["lengthscales"]), (self.dim,)).astype(float).copy()
-            self.args = (arr["x_mean"].astype(float), arr["x_scale"].astype(float), ell,
-                         np.ascontiguousarray(arr["dtc_Z"] / ell), np.ascontiguousarray(arr["dtc_w"][:, 0]),
-                         float(meta["sigma_f_std"]) ** 2, np.ascontiguousarray(arr["dtc_beta"][:, 0]),
-                         _BASIS_ID[meta["basis"]], _KERNEL_ID[meta["kernel"]], self.y_mean, self.y_scale)
-        else:
-            raise ValueError(f"{stem}: no rollout approximation arrays (table_x or dtc_Z)")
-
-    def __call__(self, X: np.ndarray) -> np.ndarray:
-        if self.kind == "table":
-            x = np.asarray(X, dtype=float)
-            return np.interp(x, self.tx, self.ty, left=0.0, right=0.0)
-        X = np.ascontiguousarray(X, dtype=float)
-        out = np.empty(X.shape[0])
-        _dtc_eval(X, *self.args, out)
-        return out
-
-    def slope(self, x: np.ndarray) -> np.ndarray:
-        """Derivative of the tabulated 1D interpolant (segment slope; 0 outside)."""
-        j = np.searchsorted(self.tx, x) - 1
-        inside = (j >= 0) & (j < self.tslope.size)
-        return np.where(inside, self.tslope[np.clip(j, 0, self.tslope.size - 1)], 0.0)
-
 
 PAPER_COMPONENTS = ("q_x", "q_y", "dH_dtheta")
 OBJECTIVE_COMPONENTS = ("obj_n1", "obj_n2", "obj_m")
@@ -173,14 +91,14 @@ class LearnedRod:
     @classmethod
     def from_dir(cls, model_dir: str | Path, features: str, params: RodParams,
                  momentum_dir: str | Path | None = None) -> LearnedRod:
-        """The rollout approximations of the models saved in ``model_dir`` (stage 2 output)."""
+        """The rollout approximations of the models saved in ``model_dir`` (step 3 output)."""
         model_dir = Path(model_dir)
         momentum_dir = Path(momentum_dir) if momentum_dir else model_dir
         names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
         if names is None:
             raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
-        comps: dict[str, Component] = {m: Approx(momentum_dir / m) for m in MOMENTUM_MODELS}
-        comps.update({m: Approx(model_dir / m) for m in names})
+        comps: dict[str, Component] = {m: load_evaluator(momentum_dir / m) for m in MOMENTUM_MODELS}
+        comps.update({m: load_evaluator(model_dir / m) for m in names})
         center = None
         if features == "paper":
             center = comps["q_x"].meta.get("theta_center")
@@ -308,36 +226,3 @@ def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str |
     if energy_out is not None:
         write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
     return traj
-
-
-def rule(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str, model_json: str) -> None:
-    """Snakemake entry point of rule ``rollout``."""
-    run_rollout(cfg, method, float(angle), Path(model_json).parent, out, energy_out)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("rollout", help="stage 3: simulate a learned CR-GPR model",
-                       description="Integrate dz/dt = (J - R) H_z_hat + G u from the straight rod at rest.")
-    p.add_argument("--method", help="a key of rollouts.methods (cr_gpr, ...); without it, the "
-                   "features and rod are read from MODELS/manifest.json (a crgpr learn directory)")
-    p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
-    p.add_argument("--models", required=True, help="directory of the model files")
-    p.add_argument("--out", required=True)
-    p.add_argument("--energy-out")
-    p.add_argument("--t-end", type=float,
-                   help="simulated time [s] (manifest models; default simulation.t_end_s)")
-    p.add_argument("--config", default="config.yaml")
-    p.set_defaults(func=_cli_rollout)
-
-
-def _cli_rollout(a: argparse.Namespace) -> None:
-    cfg = load_config(a.config)
-    if a.method is None:
-        from crgpr.commands.learn import rollout_models
-
-        rollout_models(cfg, a.models, a.theta0, a.out, a.energy_out, a.t_end)
-    elif a.t_end is not None:
-        raise ConfigError("--t-end applies to manifest models (without --method); configured methods "
-                          "use simulation.t_end_s")
-    else:
-        run_rollout(cfg, a.method, a.theta0, a.models, a.out, a.energy_out)

@@ -1,4 +1,4 @@
-"""Stage 1: prefilter, the derivative data set E of eq. (derivative_dataset) (paper Sec. III-B, step 2).
+"""Step 2: prefilter, the derivative data set E of eq. (12) (paper Sec. III-B, step 2).
 
 Two methods write the same schema to ``results/prefilter/{method}/{angle}.parquet``:
 
@@ -12,7 +12,7 @@ Two methods write the same schema to ``results/prefilter/{method}/{angle}.parque
         fractions of N) on ``hyper_points`` evenly spaced samples, then shared by all nodes of
         that component (one Cholesky factor serves all 26 nodes). Posterior mean and its
         analytic first and second time derivatives are evaluated on the output grid.
-``fd``  (the ablation, paper Table IV): z itself and central differences in time,
+``fd``  (the ablation, paper Table V): z itself and central differences in time,
         dz/dt = (z_{k+1} - z_{k-1}) / (2 dt), d2z/dt2 = (z_{k+1} - 2 z_k + z_{k-1}) / dt^2, on
         the FULL recorded data (one-sided second-order at the two ends).
 
@@ -30,7 +30,6 @@ non-uniformly sampled time series (used by the camera-data / missing-physics wor
 
 from __future__ import annotations
 
-import argparse
 import logging
 import time
 from dataclasses import dataclass
@@ -40,11 +39,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.config import ConfigError, load_config, rod_params
+from crgpr.config import ConfigError
 from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
-from crgpr.io import read_parquet, write_parquet
+from crgpr.io import frame_to_grid, read_parquet
 from crgpr.physics.rod import STATE_NAMES
-from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory, trajectory_from_frame
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory
 
 log = logging.getLogger(__name__)
 
@@ -59,14 +58,14 @@ PREFILTER_COLUMNS: tuple[str, ...] = (*TRAJECTORY_COLUMNS, *D1_COLUMNS, *D2_COLU
 class PrefilterSettings:
     """Section ``prefilter`` of config.yaml (see its schema for units and ranges)."""
 
-    stride: int = 5  # condition the state GPs on every stride-th recorded sample
-    n_t_out: int = 759  # output time grid N_t'
-    kernel: str = "matern52"
-    basis: str = "quadratic"
-    noise_var_min: float = 1.0e-9  # lower bound on the noise variance (standardised units)
-    hyper_nodes: tuple[float, ...] = (0.33, 0.67, 1.0)  # fractions of N
-    hyper_points: int = 200
-    n_restarts: int = 1
+    stride: int  # condition the state GPs on every stride-th recorded sample
+    n_t_out: int  # output time grid N_t'
+    kernel: str
+    basis: str
+    noise_var_min: float  # lower bound on the noise variance (standardised units)
+    hyper_nodes: tuple[float, ...]  # fractions of N
+    hyper_points: int
+    n_restarts: int
 
     @classmethod
     def from_config(cls, cfg: dict[str, Any]) -> PrefilterSettings:
@@ -141,7 +140,7 @@ def fd_time_derivatives(z: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray
 
 
 def fd_prefilter(traj: Trajectory, settings: PrefilterSettings) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Central finite differences in time on the full recorded data (ablation, Table IV)."""
+    """Central finite differences in time on the full recorded data (ablation, Table V)."""
     z = traj.z
     t = traj.t
     if len(t) < 3:
@@ -228,44 +227,8 @@ def read_prefiltered(path: str | Path) -> pd.DataFrame:
 
 def prefiltered_arrays(df: pd.DataFrame) -> dict[str, np.ndarray]:
     """Arrays (n_t, N+1) per column of a prefilter table, plus 't' (n_t,)."""
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"prefilter table is not a full (t, node) grid: {len(df)} rows, "
-                         f"{t.size} times x {n_nodes} nodes")
-    out = {c: df[c].to_numpy().reshape(t.size, n_nodes) for c in PREFILTER_COLUMNS
-           if c not in ("theta0_deg", "t", "node")}
+    cols = [c for c in PREFILTER_COLUMNS if c not in ("theta0_deg", "t", "node")]
+    t, g = frame_to_grid(df, cols, "prefilter table")
+    out = {c: np.ascontiguousarray(g[..., k]) for k, c in enumerate(cols)}
     out["t"] = t
     return out
-
-
-def rule(cfg: dict[str, Any], method: str, angle: int, gt: str, out: str) -> None:
-    """Snakemake entry point of rule ``prefilter``."""
-    params = rod_params(cfg)
-    settings = PrefilterSettings.from_config(cfg)
-    traj = trajectory_from_frame(read_parquet(gt, required=TRAJECTORY_COLUMNS), params)
-    seed = int(cfg["seed"]) + 1000 + int(angle)
-    t0 = time.perf_counter()
-    df, meta = prefilter(traj, method, settings, seed)
-    meta.update({"kind": "prefilter", "theta0_deg": angle, "source": str(gt), "seed": seed,
-                 "seconds": time.perf_counter() - t0, "rod": params.to_dict()})
-    write_parquet(df, out, meta)
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("prefilter", help="stage 1: smooth a trajectory and estimate its derivatives",
-                       description="Write the derivative data set E (eq. derivative_dataset) of a "
-                                   "ground-truth trajectory Parquet file.")
-    p.add_argument("--method", choices=METHODS, default="gp")
-    p.add_argument("--trajectory", required=True, help="ground-truth trajectory Parquet file")
-    p.add_argument("--out", required=True, help="Parquet file to write")
-    p.add_argument("--config", default="config.yaml", help="config.yaml (sections rod, prefilter, seed)")
-    p.set_defaults(func=_cli)
-
-
-def _cli(args: argparse.Namespace) -> None:
-    cfg = load_config(args.config)
-    df = read_parquet(args.trajectory, required=TRAJECTORY_COLUMNS)
-    angle = int(round(float(df["theta0_deg"].iloc[0])))
-    rule(cfg, args.method, angle, args.trajectory, args.out)

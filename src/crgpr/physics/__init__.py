@@ -1,13 +1,25 @@
 """Physics of the planar Cosserat rod (paper Sec. III-A, eqs. (3)-(10); Sec. IV, Table I).
 
 Public API:
-* ``RodParams``, ``SimSettings``: the rod's parameters (Table III) and the time grid;
+* ``RodParams``, ``SimSettings``: the rod's parameters (Table I) and the time grid;
 * ``rod``: the variational discretisation (strains, resultants, ``variational_derivative``);
-* ``integrator``: the Stormer-Verlet scheme with Strang-split dissipation;
+* ``integrator``: the one Stormer-Verlet scheme with Strang-split dissipation (``run_verlet``
+  and its forms ``run_hamiltonian``, ``run_generic``, compiled ``run_rod``) and the one
+  divergence policy (``diverged_nodes``, ``MAX_SPEED``, ``REACH``);
 * ``simulate``: ground-truth trajectories (``simulate``, ``Trajectory``, Parquet frames).
 """
 
-from crgpr.physics.integrator import Integration, SimulationDiverged, run_generic, run_hamiltonian, run_rod
+from crgpr.physics.integrator import (
+    MAX_SPEED,
+    REACH,
+    Integration,
+    SimulationDiverged,
+    diverged_nodes,
+    run_generic,
+    run_hamiltonian,
+    run_rod,
+    run_verlet,
+)
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import (
     STATE_NAMES,
@@ -26,7 +38,8 @@ from crgpr.physics.simulate import (
 )
 
 __all__ = [
-    "Integration", "RodParams", "STATE_NAMES", "SimSettings", "SimulationDiverged", "TRAJECTORY_COLUMNS",
-    "Trajectory", "free_mask", "masses", "node_weights", "run_generic", "run_hamiltonian", "run_rod",
-    "simulate", "straight_rod", "trajectory_frame", "trajectory_from_frame", "variational_derivative",
+    "MAX_SPEED", "REACH", "STATE_NAMES", "TRAJECTORY_COLUMNS", "Integration", "RodParams", "SimSettings",
+    "SimulationDiverged", "Trajectory", "diverged_nodes", "free_mask", "masses", "node_weights",
+    "run_generic", "run_hamiltonian", "run_rod", "run_verlet", "simulate", "straight_rod",
+    "trajectory_frame", "trajectory_from_frame", "variational_derivative",
 ]

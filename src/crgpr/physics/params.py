@@ -1,4 +1,4 @@
-"""Physical and simulation parameters (paper Table "Physical and Simulation Parameters").
+"""Physical and simulation parameters (paper Table I, Sec. IV).
 
 Symbols follow the paper; units are SI and stated next to each field. The extra
 fields after ``kappa0`` are the physical effects of the missing-physics workflow;
@@ -17,7 +17,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RodParams:
-    """Planar Cosserat rod parameters (paper Table III plus the choices it leaves out)."""
+    """Planar Cosserat rod parameters (paper Table I plus the choices it leaves out)."""
 
     L0: float = 0.5  # rod length [m]
     N: int = 25  # number of segments [-] (N + 1 nodes, node 0 clamped)
@@ -37,6 +37,8 @@ class RodParams:
     nonlinear_stiffness: float = 0.0  # b in m = EI dk (1 + b dk^2) [m^2]
     stiffness_gradient: float = 0.0  # g in EI(s) = EI (1 - g s / L0) [-]
     base_spring: float = math.inf  # rotational base spring k [N m/rad]; inf = clamp
+    internal_damping: float = 0.0  # Kelvin-Voigt bending damping m += c dkappa/dt, c [N m^2 s]
+    stiffness_scale: float = 0.0  # a in E = E_nominal (1 + a): EA, GA, EI scale together [-]
 
     # ---- derived quantities -------------------------------------------------
     @property
@@ -55,13 +57,18 @@ class RodParams:
         return self.A**2 / (4.0 * math.pi)
 
     @property
+    def E_eff(self) -> float:
+        """Young's modulus of the rod, E (1 + stiffness_scale) [Pa]."""
+        return self.E * (1.0 + self.stiffness_scale)
+
+    @property
     def G(self) -> float:
-        """Shear modulus E / (2 (1 + nu)) [Pa]."""
-        return self.E / (2.0 * (1.0 + self.nu))
+        """Shear modulus E_eff / (2 (1 + nu)) [Pa]."""
+        return self.E_eff / (2.0 * (1.0 + self.nu))
 
     @property
     def EA(self) -> float:
-        return self.E * self.A
+        return self.E_eff * self.A
 
     @property
     def GA(self) -> float:
@@ -69,7 +76,7 @@ class RodParams:
 
     @property
     def EI(self) -> float:
-        return self.E * self.I
+        return self.E_eff * self.I
 
     @property
     def rhoA(self) -> float:
@@ -118,12 +125,13 @@ class RodParams:
         Translational rows: 4 max(EA, GA) / (rhoA ds^2); rotational rows:
         4 E / (rho ds^2) + GA / (rho I) (bending plus the shear couple of the
         mid-segment angle); a base spring k adds 2 k / (rho I ds) to the base node's
-        rotational row (half a segment of inertia). Used to reject a time step that
-        cannot be stable.
+        rotational row (half a segment of inertia). The Kelvin-Voigt damping is integrated
+        by its exact flow (``integrator.kelvin_voigt_propagator``) and sets no bound. Used to
+        reject a time step that cannot be stable.
         """
         ds = self.ds
         w2_t = 4.0 * max(self.EA, self.GA) / (self.rhoA * ds**2)
-        w2_r = 4.0 * self.E / (self.rho * ds**2) + self.GA / self.rhoI
+        w2_r = 4.0 * self.E_eff / (self.rho * ds**2) + self.GA / self.rhoI
         if not self.clamped:
             w2_r += 2.0 * self.base_spring / (self.rhoI * ds)
         return math.sqrt(max(w2_t, w2_r))

@@ -1,4 +1,4 @@
-"""Variational spatial discretisation of the planar Cosserat rod (paper eqs. (H), (ph-compact)).
+"""Variational spatial discretisation of the planar Cosserat rod (paper eqs. (4), (9); Sec. III-A).
 
 Grid
     N segments of length ds = L0 / N between nodes i = 0..N at s_i = i ds. Node 0 is the

@@ -12,13 +12,20 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from crgpr.physics.integrator import Integration, run_rod
+from crgpr.io import frame_to_grid
+from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_rod
 from crgpr.physics.params import RodParams, SimSettings
-from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, segment_EI, straight_rod
-
-TRAJECTORY_COLUMNS: tuple[str, ...] = (
-    "theta0_deg", "t", "node", "s", "x", "y", "theta", "p_x", "p_y", "p_theta",
+from crgpr.physics.rod import (
+    STATE_NAMES,
+    free_mask,
+    internal_forces,
+    masses,
+    node_weights,
+    segment_EI,
+    straight_rod,
 )
+
+TRAJECTORY_COLUMNS: tuple[str, ...] = ("theta0_deg", "t", "node", "s", *STATE_NAMES)
 ENERGY_COLUMNS: tuple[str, ...] = ("t", "H", "dissipation_rate", "dissipated")
 
 
@@ -60,8 +67,8 @@ def rod_kernel_args(params: RodParams, theta_base: float) -> tuple:
 
 def simulate(
     theta0_deg: float,
-    params: RodParams | None = None,
-    settings: SimSettings | None = None,
+    params: RodParams,
+    settings: SimSettings,
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
 ) -> Trajectory:
@@ -70,8 +77,6 @@ def simulate(
     ``q0``/``v0`` (N+1, 3) override the initial configuration / velocities (the base node
     stays where ``q0`` puts it). Raises ``SimulationDiverged`` if the run blows up.
     """
-    params = params or RodParams()
-    settings = settings or SimSettings()
     th0 = math.radians(theta0_deg)
     q_init = straight_rod(th0, params) if q0 is None else np.array(q0, dtype=float)
     v_init = np.zeros_like(q_init) if v0 is None else np.array(v0, dtype=float)
@@ -82,6 +87,8 @@ def simulate(
         q_init, v_init, free_mask(params), m_t, m_r, lam_t, lam_r, k_quad, grav,
         rod_kernel_args(params, float(q_init[0, 2])), settings.dt, settings.n_steps,
         settings.record_every,
+        kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
+                                   0.5 * settings.dt),
     )
     p = out.v.copy()
     p[..., 0] *= params.rhoA
@@ -100,7 +107,7 @@ def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     """Total energy H (kinetic + elastic + gravity + base spring) and dissipation rate per t.
 
     dissipation_rate = H_z^T R H_z integrated over the rod (paper Sec. V, E(t)), with the
-    drag effects added when present.
+    drag effects and the Kelvin-Voigt term sum_j ds c kappa_dot_j^2 added when present.
     """
     pr = traj.params
     m_t, m_r = masses(pr)
@@ -114,6 +121,7 @@ def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     rate = ((pr.zeta + pr.viscous_drag) * wds * speed2).sum(axis=-1)
     rate += (pr.zeta * wds * v[..., 2] ** 2).sum(axis=-1)
     rate += (pr.air_drag * wds * speed2**1.5).sum(axis=-1)
+    rate += pr.internal_damping / pr.ds * (np.diff(v[..., 2], axis=-1) ** 2).sum(axis=-1)
     return {"H": ke + ve + pe_g, "kinetic": ke, "elastic": ve, "gravity": pe_g,
             "dissipation_rate": rate}
 
@@ -147,9 +155,6 @@ def energy_frame(traj: Trajectory) -> pd.DataFrame:
 
 def trajectory_from_frame(df: pd.DataFrame, params: RodParams) -> Trajectory:
     """Inverse of ``trajectory_frame`` (rows sorted by t, node)."""
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    z = df[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy().reshape(len(t), n_nodes, 6)
+    t, z = frame_to_grid(df, STATE_NAMES, "trajectory")
     theta0 = float(df["theta0_deg"].iloc[0]) if "theta0_deg" in df else float("nan")
     return Trajectory(theta0, t, z[..., :3].copy(), z[..., 3:].copy(), params)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.io import atomic_path, read_metadata, read_parquet, write_csv, write_text
+from crgpr.io import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -30,7 +30,7 @@ METRICS: tuple[str, ...] = ("rmse_theta", "tip_rmse_over_L", "group_nrmse")
 METRIC_LABELS = {"rmse_theta": r"RMSE($\theta$) [rad]", "tip_rmse_over_L": r"RMSE$_{tip}$/L",
                  "group_nrmse": "Group-nRMSE"}
 
-# Paper Sec. V text and Table IV (two-step CR-GPR row); None where the paper gives no number.
+# Paper Sec. V text and Table V (two-step CR-GPR row); None where the paper gives no number.
 PAPER: dict[str, dict[str, Any]] = {
     "blackbox_gp": {"label": "Black-box GP", "n_init": 1, "rmse_theta": 4.559},
     "pinn_physics": {"label": "PINN (physics only)", "n_init": 0, "rmse_theta": None},
@@ -38,7 +38,7 @@ PAPER: dict[str, dict[str, Any]] = {
     "pinn_data_8": {"label": "PINN", "n_init": 8, "rmse_theta": 0.244},
     "cr_gpr": {"label": "CR-GPR", "n_init": 1, "rmse_theta": 0.222, "tip_rmse_over_L": 0.1278,
                "group_nrmse": 0.0540},
-    # our extension beyond the paper (issue 3): frame-indifferent features; no paper value
+    # our extension beyond the paper: frame-indifferent features; no paper value
     "cr_gpr_objective": {"label": "CR-GPR objective\n(ours, not in paper)", "n_init": 1, "rmse_theta": None},
 }
 ORDER = ("blackbox_gp", "pinn_physics", "pinn_data_1", "pinn_data_8", "cr_gpr", "cr_gpr_objective")
@@ -144,34 +144,8 @@ def plot_baselines(df: pd.DataFrame, out: str | Path) -> None:
     plt.close(fig)
 
 
-def rule(cfg: dict[str, Any], accuracy: str, rollouts: dict[str, list[str]], ground_truth: list[str],
-         pinn_histories: dict[str, str], table: str, notes: str, figure: str) -> None:
-    """Rule ``baselines_table``: table, notes and figure from the metrics and rollouts."""
-    angles = [int(a) for a in cfg["angles"]["test_deg"]]
-    acc = read_parquet(accuracy, required=["method", "theta0_deg", *METRICS])
-    truth = {int(round(float(read_parquet(p, required=["theta0_deg"])["theta0_deg"].iloc[0]))): p
-             for p in ground_truth}
-    extra: dict[str, dict[str, Any]] = {}
-    for method, files in rollouts.items():
-        ratios, div = [], []
-        for f in files:
-            pred = read_parquet(f, required=["theta0_deg", "node", "theta"])
-            a = int(round(float(pred["theta0_deg"].iloc[0])))
-            ratios.append(motion_ratio(pred, read_parquet(truth[a])))
-            meta = read_metadata(f)
-            if meta.get("diverged"):
-                div.append(f"{a} deg at t = {meta.get('t_diverged'):.3g} s, node {meta.get('node_diverged')}")
-        extra[method] = {"motion_ratio": float(np.mean(ratios)), "n_diverged": len(div),
-                         "diverged_at": "; ".join(div)}
-    for method, path in pinn_histories.items():
-        h = read_parquet(path, required=["loss", "loss_momentum", "loss_data"])
-        meta = read_metadata(path)
-        extra.setdefault(method, {}).update({
-            "train_seconds": meta.get("train_seconds"),
-            "final_loss_momentum": float(h["loss_momentum"].iloc[-1]),
-            "final_loss_data": float(h["loss_data"].iloc[-1])})
-    df = baseline_table(acc, angles, extra)
-    write_csv(df, table, float_format="%.6g")
+def notes_markdown(df: pd.DataFrame, angles: list[int]) -> str:
+    """``baselines_notes.md``: the ordering of the methods, divergences, stationary PINNs."""
     lines = ["# Baseline comparison: notes", "",
              f"Mean over the test angles {angles} deg; metrics from results/metrics/accuracy.parquet.", ""]
     lines += [f"- {n}" for n in ordering_notes(df)]
@@ -185,6 +159,4 @@ def rule(cfg: dict[str, Any], accuracy: str, rollouts: dict[str, list[str]], gro
                 else " (nearly stationary at these unseen angles).")
             lines.append(f"- {r['method']}: predicted motion RMS(theta - theta0) is "
                          f"{r['motion_ratio']:.3g} x the ground truth's{still}")
-    write_text("\n".join(lines) + "\n", notes)
-    plot_baselines(df, figure)
-    log.info("baselines table:\n%s", df.to_string())
+    return "\n".join(lines) + "\n"

@@ -6,7 +6,6 @@ All figures use matplotlib's Agg backend and are written atomically (io.atomic_p
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 
@@ -15,7 +14,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from crgpr.io import atomic_path, read_parquet  # noqa: E402
+from crgpr.io import (  # noqa: E402
+    atomic_path,  # noqa: E402
+    frame_to_grid,
+)
 from crgpr.physics.rod import STATE_NAMES  # noqa: E402
 
 LABELS = {"x": "x [m]", "y": "y [m]", "theta": r"$\theta$ [rad]", "p_x": r"$p_x$ [kg/s]",
@@ -29,10 +31,7 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
 
 
 def _arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n = int(df["node"].max()) + 1
-    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n, 6)
+    return frame_to_grid(df, STATE_NAMES)
 
 
 def overlays(gt: pd.DataFrame, pred: pd.DataFrame, out: str | Path, method: str, angle: float) -> None:
@@ -114,14 +113,3 @@ def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, meth
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     _save(fig, out)
-
-
-def rule(cfg: dict[str, Any], method: str, angle: float, gt_train: str, gt_test: str, gt_test_energy: str,
-         rollout: str, rollout_energy: str, overlays_out: str, shapes_out: str, energy_out: str) -> None:
-    """Snakemake entry point of rule ``figures_crgpr``."""
-    train = float(cfg["angles"]["train_deg"])
-    gtt = read_parquet(gt_test)
-    pred = read_parquet(rollout)
-    overlays(gtt, pred, overlays_out, method, angle)
-    shapes(read_parquet(gt_train), gtt, pred, shapes_out, method, train, angle)
-    energy(read_parquet(rollout_energy), read_parquet(gt_test_energy), energy_out, method, angle)

@@ -12,7 +12,6 @@ The functions are generic in the method name, so baselines and UQ reuse them.
 
 from __future__ import annotations
 
-import argparse
 import logging
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+from crgpr.io import frame_to_grid, read_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
@@ -40,12 +39,7 @@ PAPER_TABLE4 = {"two-step (GP dz/dt)": {"rmse_theta": 0.2218, "tip_rmse_over_L":
 
 
 def _grid(df: pd.DataFrame, path: str) -> tuple[np.ndarray, np.ndarray]:
-    df = df.sort_values(["t", "node"])
-    t = np.unique(df["t"].to_numpy())
-    n_nodes = int(df["node"].max()) + 1
-    if len(df) != t.size * n_nodes:
-        raise ValueError(f"{path}: not a full (t, node) grid ({len(df)} rows, {t.size} x {n_nodes})")
-    return t, df[list(STATE_NAMES)].to_numpy().reshape(t.size, n_nodes, 6)
+    return frame_to_grid(df, STATE_NAMES, path)
 
 
 def accuracy(gt: pd.DataFrame, pred: pd.DataFrame, L0: float, gt_name: str = "ground truth",
@@ -90,7 +84,7 @@ def accuracy_table(pairs: list[tuple[str, float, str, str]], L0: float) -> pd.Da
 
 
 def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
-    """Table I: RMSE(theta) and R^2 per angle and mean, paper beside ours."""
+    """Table III (file table1_accuracy.csv): RMSE(theta) and R^2 per angle and mean, paper beside ours."""
     sel = acc[acc["method"] == method].set_index("theta0_deg")
     rows = []
     for metric in ("rmse_theta", "r2_theta"):
@@ -108,7 +102,7 @@ def table1(acc: pd.DataFrame, method: str, angles: list[int]) -> pd.DataFrame:
 
 
 def table4(acc: pd.DataFrame, methods: list[str]) -> pd.DataFrame:
-    """Table IV: metrics averaged over the test angles per pipeline, paper beside ours."""
+    """Table V (ablation): metrics averaged over the test angles per pipeline, paper beside ours."""
     labels = list(PAPER_TABLE4)
     rows = []
     for i, m in enumerate(methods):
@@ -120,33 +114,3 @@ def table4(acc: pd.DataFrame, methods: list[str]) -> pd.DataFrame:
             row[f"paper_{c}"] = PAPER_TABLE4.get(label, {}).get(c, np.nan)
         rows.append(row)
     return pd.DataFrame(rows)
-
-
-def rule_accuracy(cfg: dict[str, Any], methods: list[str], angles: list[int], results: str, out: str,
-                  table1_out: str, table4_out: str) -> None:
-    """Snakemake entry point of rule ``metrics``: accuracy.parquet and Tables I and IV."""
-    from crgpr.config import rod_params
-
-    L0 = rod_params(cfg).L0
-    pairs = [(m, a, f"{results}/ground_truth/{a}.parquet", f"{results}/rollouts/{m}/{a}.parquet")
-             for m in methods for a in angles]
-    acc = accuracy_table(pairs, L0)
-    provenance = {}
-    for _, _, _, p in pairs:
-        if Path(p).exists():
-            provenance[p] = read_metadata(p).get("code_version")
-    write_parquet(acc, out, {"kind": "accuracy", "methods": methods, "angles": angles,
-                             "definitions": __doc__, "inputs": provenance})
-    rc = cfg["rollouts"]
-    write_csv(table1(acc, rc["table1_method"], angles), table1_out, float_format="%.4f")
-    write_csv(table4(acc, list(rc["ablation_methods"])), table4_out, float_format="%.4f")
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("accuracy", help="metrics of one rollout against ground truth",
-                       description="RMSE(theta), R^2, tip RMSE / L0 and Group-nRMSE (paper Sec. V).")
-    p.add_argument("--ground-truth", required=True)
-    p.add_argument("--rollout", required=True)
-    p.add_argument("--L0", type=float, default=0.5, help="rod length [m]")
-    p.set_defaults(func=lambda a: print(accuracy(read_parquet(a.ground_truth, required=TRAJECTORY_COLUMNS),
-                                                 read_parquet(a.rollout), a.L0, a.ground_truth, a.rollout)))

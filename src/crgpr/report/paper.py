@@ -15,7 +15,6 @@ parsed by a tiny recursive-descent parser (no ``eval``).
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 from dataclasses import dataclass
@@ -312,18 +311,3 @@ def build(values_path: str, accuracy: str | None, hyper: str | None, timing: str
     write_csv(ct, out_claims)
     write_text(render_markdown(qt, ct, src.timing), out_md)
     return qt, ct
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("paper-tables", help="regenerate results/tables/paper_vs_reproduction.{csv,md}")
-    p.add_argument("--values", default="workflow/paper_values.yaml")
-    p.add_argument("--results", default="results", help="results directory of a run")
-    p.set_defaults(func=_cli)
-
-
-def _cli(args: argparse.Namespace) -> None:
-    r = Path(args.results)
-    build(args.values, str(r / "metrics/accuracy.parquet"), str(r / "tables/table2_hyperparameters.csv"),
-          str(r / "metrics/timing.parquet"), str(r / "tables/uq_coverage.csv"),
-          str(r / "tables/paper_vs_reproduction.csv"), str(r / "tables/paper_vs_reproduction.md"),
-          str(r / "tables/paper_claims.csv"), str(r / "tables/noise_ablation.csv"))

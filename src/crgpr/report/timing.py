@@ -20,8 +20,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from crgpr.io import write_parquet
-
 PAPER_MINUTES = {"stage1": 3.0, "stage2": 8.0, "stage3": 2.4, "stage4": 36.0}
 DESCRIPTION = {
     "stage1": "GP prefiltering (fit state GPs, extract z-dot), training angle",
@@ -64,7 +62,3 @@ def timing_table(stage_files: dict[str, dict[str, list[str]]]) -> pd.DataFrame:
                      "jobs": len(summed) + len(averaged), "how": how,
                      "paper_minutes": PAPER_MINUTES[stage], "machine": machine()})
     return pd.DataFrame(rows)
-
-
-def rule(stage_files: dict[str, dict[str, list[str]]], out: str) -> None:
-    write_parquet(timing_table(stage_files), out, {"kind": "timing"})

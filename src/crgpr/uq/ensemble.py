@@ -52,12 +52,12 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
+from crgpr.gp import GP
 from crgpr.gp.sampling import (
     CompressedSamples,
-    GPSpec,
     exact_posterior,
+    inducing_indices,
     pathwise_samples,
-    pivoted_cholesky_inducing,
     sparse_posterior,
 )
 from crgpr.gp.sampling import compress as compress_samples
@@ -146,7 +146,7 @@ class TabulatedSamples:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Sample s at x[s]: x (S, ...) or (S, ..., 1) -> (S, ...); 0 (the prior mean) outside
-        the grid, as the CR-GPR rollout's tables (learned.Approx)."""
+        the grid, as the CR-GPR rollout's tables (crgpr.gp.Table1D)."""
         return self._eval(x, False)
 
     def slope(self, x: np.ndarray) -> np.ndarray:
@@ -187,8 +187,8 @@ def uq_seed(cfg: dict[str, Any], model_index: int) -> int:
 # stage 1: samples of every gradient GP
 
 
-def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None, np.ndarray | None]:
-    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GPSpec without the
+def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np.ndarray | None]:
+    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GP without the
     O(n^3) factorisation ``GP.load`` performs; also return the standardised inducing inputs
     ``dtc_Z`` of the rollout's DTC mean and the 1D table grid ``table_x`` (gradient_models.py)
     when the file has them."""
@@ -210,9 +210,10 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None
     y_mean = float(np.ravel(arr["y_mean"])[0])
     y_scale = float(np.ravel(arr["y_scale"])[0])
     x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
-    spec = GPSpec((X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
-                  np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)),
-                  float(meta["sigma_n_std"]), str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+    spec = GP.from_standardised(
+        (X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
+        np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)), float(meta["sigma_n_std"]),
+        str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
     Z = arr.get("dtc_Z")
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")
@@ -220,19 +221,19 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GPSpec, np.ndarray | None
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
-def _subset(spec: GPSpec, idx: np.ndarray) -> GPSpec:
-    return GPSpec(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.lengthscales, spec.sigma_n, spec.basis,
-                  spec.x_mean, spec.x_std, spec.y_mean, spec.y_scale, spec.name)
+def _subset(spec: GP, idx: np.ndarray) -> GP:
+    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
 
 
-def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
+def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
                        grid: np.ndarray | None = None
                        ) -> tuple[CompressedSamples | TabulatedSamples, dict[str, Any]]:
     """S compressed joint samples of one GP plus diagnostics.
 
     Inducing inputs: ``Z`` (standardised) if given, i.e. the rollout's own DTC inducing set, so
     that the samples are centred on exactly the mean model the CR-GPR rollout integrates; else
-    M = uq.inducing by pivoted Cholesky. Diagnostics: the sampler's mean and sd against the
+    M = uq.inducing by crgpr.gp.select_inducing. Diagnostics: the sampler's mean and sd against the
     exact GP posterior at ``check_points`` training inputs; for n > exact_check_max_n both are
     conditioned on a random subset of exact_check_max_n points (as gradient_models.py does).
 
@@ -246,8 +247,8 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
     t0 = time.perf_counter()
     n = spec.Xs.shape[0]
     if Z is None:
-        idx = pivoted_cholesky_inducing(spec, settings.inducing)
-        Z, z_src = spec.Xs[idx], "pivoted Cholesky of K_XX"
+        idx = inducing_indices(spec, settings.inducing, seed)
+        Z, z_src = spec.Xs[idx], "farthest points (crgpr.gp.select_inducing)"
     else:
         idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
     info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
@@ -280,7 +281,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
 
         xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
                                                              replace=False)]
-        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.lengthscales) @ np.ravel(ra["dtc_w"])
+        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.ell) @ np.ravel(ra["dtc_w"])
                                 + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
         m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
         info["sparse_mean_vs_rollout_mean_max_over_sd"] = float(
@@ -315,7 +316,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
             info["compression_err_max_over_sd"] = float(np.abs(err).max())
             info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
         info["exact_sd_median"] = float(np.median(sd_ex))
-        info["sigma_n"] = spec.sigma_n * spec.y_scale
+        info["sigma_n"] = spec.sigma_n * spec.out_scale
     else:
         info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
     info["seconds"] = time.perf_counter() - t0
@@ -323,7 +324,7 @@ def draw_model_samples(spec: GPSpec, settings: UQSettings, seed: int, Z: np.ndar
     return comp, info
 
 
-def _tabulated_samples(spec: GPSpec, settings: UQSettings, seed: int, grid: np.ndarray
+def _tabulated_samples(spec: GP, settings: UQSettings, seed: int, grid: np.ndarray
                        ) -> tuple[TabulatedSamples, dict[str, Any]]:
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -341,7 +342,7 @@ def _tabulated_samples(spec: GPSpec, settings: UQSettings, seed: int, grid: np.n
             "exact_check": "interpolation error of the tabulated samples vs the exact samples",
             "interp_err_max_over_sd": float(np.abs(err).max()),
             "interp_err_rms_over_sd": float(np.sqrt(np.mean(err**2))),
-            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.y_scale,
+            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.out_scale,
             "seconds": time.perf_counter() - t0}
     log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
     return tab, info
@@ -439,7 +440,7 @@ def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_resta
     dropped, and the remaining batch is integrated again from t = 0 (never silently kept).
     Returns t (n_t,), q and p (S', n_t, N+1, 3) of the surviving samples, their indices, and
     the divergence records."""
-    from crgpr.physics.integrator import MAX_SPEED, SimulationDiverged, run_hamiltonian
+    from crgpr.physics.integrator import REACH, SimulationDiverged, diverged_nodes, run_hamiltonian
 
     P = rod.params
     q0 = straight_rod(np.radians(theta0_deg), P)
@@ -469,12 +470,11 @@ def rollout_samples(rod: SampledRod, theta0_deg: float, settings: Any, max_resta
             out = run_hamiltonian(qb, np.zeros_like(qb), force, velocity, np.tile(free, (S, 1)), P.zeta,
                                   settings.dt, settings.n_steps, settings.record_every, np.tile(wds, S),
                                   what=f"UQ rollout at theta0 = {theta0_deg:g} deg",
-                                  velocity_slope=velocity_slope)
+                                  velocity_slope=velocity_slope, length=P.L0)
         except SimulationDiverged as exc:
             q, p = rod.last_q, rod.last_p
             v = rod.velocity(p) if p is not None else np.full_like(q, np.nan)
-            bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(v).all(axis=(1, 2))
-                    & (np.abs(v) < MAX_SPEED).all(axis=(1, 2)) & (np.abs(q) < 1.0e6).all(axis=(1, 2)))
+            bad = diverged_nodes(q, v, q0[0, :2], REACH * P.L0).any(axis=1)  # the integrator's policy
             if not bad.any():
                 raise
             for j in np.nonzero(bad)[0]:
@@ -794,7 +794,7 @@ def function_calibration(cfg: dict[str, Any], model_stems: dict[str, str], gt_pa
                 from crgpr.gp.sampling import se_kernel
 
                 xs = spec.standardise(X)
-                mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.lengthscales)
+                mean = spec.to_output(se_kernel(xs, ra["dtc_Z"], spec.sigma_f, spec.ell)
                                       @ np.ravel(ra["dtc_w"]) + spec.basis_fn(xs) @ np.ravel(ra["dtc_beta"]))
             sd = np.sqrt(np.maximum(var, 1e-300))
             z = (truth[m].reshape(-1) - mean) / sd

@@ -1,4 +1,4 @@
-# Stage 0: ground-truth rod trajectories, one job per initial angle (paper Sec. IV).
+# Ground truth (paper Sec. III-B step 1, Sec. IV): rod trajectories, one job per initial angle.
 
 
 rule ground_truth:
@@ -7,6 +7,8 @@ rule ground_truth:
     output:
         traj=f"{RESULTS}/ground_truth/{{angle}}.parquet",
         energy=f"{RESULTS}/ground_truth/{{angle}}_energy.parquet",
+    params:
+        cfg=cfg_params("rod", "simulation"),
     wildcard_constraints:
         angle=r"-?\d+",
     log:
@@ -15,7 +17,7 @@ rule ground_truth:
         "benchmarks/ground_truth/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV

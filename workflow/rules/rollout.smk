@@ -1,5 +1,5 @@
-# Stage 3 (issue 3): learned-model rollouts (eq. (nonpde)) per method and test angle, same
-# integrator, dt and boundary conditions as the ground truth.
+# Learned rollouts (paper Sec. III-B step 4, eq. (17); Table IV "stage 3"), per method and test
+# angle, with the ground truth's integrator, dt and boundary conditions.
 
 CRGPR_METHODS = list(config["rollouts"]["methods"])
 ROLLOUT_METHODS.extend(CRGPR_METHODS)
@@ -12,6 +12,8 @@ rule rollout:
     output:
         traj=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
         energy=f"{RESULTS}/rollouts/{{method}}/{{angle}}_energy.parquet",
+    params:
+        cfg=lambda wc: cfg_params("rod", "simulation", f"rollouts.methods.{wc.method}"),
     wildcard_constraints:
         method="|".join(CRGPR_METHODS),
         angle=r"-?\d+",
@@ -21,8 +23,8 @@ rule rollout:
         "benchmarks/rollouts/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

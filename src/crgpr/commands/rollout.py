@@ -1,0 +1,48 @@
+"""Learned rollouts, step 4 of the paper's Sec. III-B: rule ``rollout`` and ``crgpr rollout``.
+
+Writes ``results/rollouts/{method}/{angle}.parquet`` and ``_energy.parquet`` (algorithm:
+``crgpr.learning.learned``).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from crgpr.config import ConfigError, load_config
+from crgpr.learning import learned
+
+
+def rollout(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str, model_json: str) -> None:
+    """Rule ``rollout``: integrate one method's learned rod from the straight rod at ``angle``."""
+    learned.run_rollout(cfg, method, float(angle), Path(model_json).parent, out, energy_out)
+
+
+def add_cli(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("rollout", help="step 4: simulate a learned CR-GPR model",
+                       description="Integrate dz/dt = (J - R) H_z_hat + G u (eq. (17)) from the "
+                                   "straight rod at rest.")
+    p.add_argument("--method", help="a key of rollouts.methods (cr_gpr, ...); without it, the "
+                   "features and rod are read from MODELS/manifest.json (a crgpr learn directory)")
+    p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
+    p.add_argument("--models", required=True, help="directory of the model files")
+    p.add_argument("--out", required=True)
+    p.add_argument("--energy-out")
+    p.add_argument("--t-end", type=float,
+                   help="simulated time [s] (manifest models; default simulation.t_end_s)")
+    p.add_argument("--config", default="config.yaml")
+    p.set_defaults(func=_cli_rollout)
+
+
+def _cli_rollout(a: argparse.Namespace) -> None:
+    cfg = load_config(a.config)
+    if a.method is None:
+        from crgpr.commands.learn import rollout_models
+
+        rollout_models(cfg, a.models, a.theta0, a.out, a.energy_out, a.t_end)
+    elif a.t_end is not None:
+        raise ConfigError("--t-end applies to manifest models (without --method); configured methods "
+                          "use simulation.t_end_s")
+    else:
+        learned.run_rollout(cfg, a.method, a.theta0, a.models, a.out, a.energy_out)

@@ -1,0 +1,235 @@
+"""Rod kinematics on the model's grid from screened marker positions (GP smoothing).
+
+1. Time: every marker's x(t) and y(t) is smoothed and differentiated by the project's GP
+   (``crgpr.gp.fit_gp``: Matern-5/2 with a quadratic basis, paper Table II state GPs) on its
+   own usable samples (missing and excluded samples are simply absent: the GP handles
+   irregular data). The hyperparameters, shared by all markers, maximise the joint log
+   marginal likelihood (R&W Sec. 2.7) of the frames where every marker is seen, on outputs in
+   metres, so that sigma_n is the camera's noise.
+2. Space: the chord angles psi_k between neighbouring markers (base first: a base marker,
+   else the origin) and their analytic time derivatives are the mean tangent angles of the
+   rod over each chord. The model's segment angles phi_j (the mid-segment angles of
+   ``rod.py``, paper Sec. III-A) follow from the penalised least squares
+   min |W phi - psi|^2 + lam |D2 phi|^2, W_kj = share of chord k covered by segment j, D2 the
+   second difference (a cubic-spline prior on the angle): one linear operator
+   S = (W^T W + lam D2^T D2)^-1 W^T, lam by generalised cross-validation pooled over frames,
+   applied to psi and its rates alike (so they stay consistent).
+3. The rod is rebuilt unstretched and unsheared from the base: nodal angles
+   theta_i = (phi_{i-1} + phi_i) / 2 (linear extrapolation at the ends), positions
+   r_i = r_b + sum_{j<i} ds nu1^0 (cos phi_j, sin phi_j), and their exact time derivatives;
+   positions, velocities and accelerations are then pinned to the smoothed markers (their
+   differences interpolated linearly in s), so that markers on model nodes keep their own
+   GP derivatives.
+The model keeps its own grid; it is compared with the data at the marker positions
+(``marker_matrix``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from crgpr.discovery.measured import Measured
+from crgpr.physics.params import RodParams
+
+
+@dataclass
+class Kinematics:
+    """Smoothed configuration q, velocity v, acceleration a: (n_t, N+1, 3) = (x, y, theta)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    noise_std_m: float  # GP noise level of the positions [m]
+    base_segment_angle: np.ndarray  # phi_0(t) [rad]
+    s_markers: np.ndarray  # marker arc lengths [m] (the comparison points)
+
+
+def segment_angles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Chord angles (n_t, n-1) between consecutive points, unwrapped in time and along s."""
+    phi = np.arctan2(np.diff(y, axis=-1), np.diff(x, axis=-1))
+    phi = np.unwrap(phi, axis=0)  # continuous in time per chord
+    first = np.unwrap(phi[0])  # continuous along s at the first sample
+    phi += 2.0 * math.pi * np.round((first - phi[0]) / (2.0 * math.pi))
+    return phi
+
+
+def node_angles(phi: np.ndarray) -> np.ndarray:
+    """Nodal angles from segment (mid-segment) angles; linear operator, also for rates."""
+    n = phi.shape[-1]
+    out = np.empty(phi.shape[:-1] + (n + 1,))
+    out[..., 1:-1] = 0.5 * (phi[..., 1:] + phi[..., :-1])
+    if n >= 2:
+        out[..., 0] = 1.5 * phi[..., 0] - 0.5 * phi[..., 1]
+        out[..., -1] = 1.5 * phi[..., -1] - 0.5 * phi[..., -2]
+    else:
+        out[..., 0] = out[..., -1] = phi[..., 0]
+    return out
+
+
+def angle_kinematics(x, y, vx, vy, ax, ay) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Chord angle psi and its first two time derivatives from point kinematics."""
+    dx, dy = np.diff(x, axis=-1), np.diff(y, axis=-1)
+    dvx, dvy = np.diff(vx, axis=-1), np.diff(vy, axis=-1)
+    dax, day = np.diff(ax, axis=-1), np.diff(ay, axis=-1)
+    r2 = dx**2 + dy**2
+    phi = segment_angles(x, y)
+    w = (dx * dvy - dy * dvx) / r2
+    alpha = (dx * day - dy * dax) / r2 - 2.0 * w * (dx * dvx + dy * dvy) / r2
+    return phi, w, alpha
+
+
+def marker_matrix(s_markers: np.ndarray, params: RodParams) -> np.ndarray:
+    """Linear interpolation (n_m, N+1) from nodal values to the markers (base excluded)."""
+    s = np.asarray(s_markers, float)
+    s = s[s > 1e-9]
+    u = np.clip(s / params.ds, 0.0, params.N)
+    i = np.minimum(np.floor(u).astype(int), params.N - 1)
+    f = u - i
+    M = np.zeros((s.size, params.N + 1))
+    M[np.arange(s.size), i] = 1.0 - f
+    M[np.arange(s.size), i + 1] += f
+    return M
+
+
+def chord_operator(s_points: np.ndarray, params: RodParams) -> np.ndarray:
+    """W (n_chords, N): share of chord k (between consecutive points) covered by segment j."""
+    edges = np.arange(params.N + 1) * params.ds
+    a, b = s_points[:-1], s_points[1:]
+    lo = np.maximum(a[:, None], edges[None, :-1])
+    hi = np.minimum(b[:, None], edges[None, 1:])
+    return np.maximum(hi - lo, 0.0) / (b - a)[:, None]
+
+
+def spatial_operator(W: np.ndarray, psi_frames: np.ndarray) -> tuple[np.ndarray, float]:
+    """S = (W^T W + lam D2^T D2)^-1 W^T with lam by pooled GCV over the given frames."""
+    n_seg = W.shape[1]
+    D2 = np.diff(np.eye(n_seg), 2, axis=0)
+    P = D2.T @ D2
+    WtW = W.T @ W
+    scale = np.trace(WtW) / max(np.trace(P), 1e-300)
+    best = None
+    for lam in scale * np.logspace(-8, 3, 45):
+        S = np.linalg.solve(WtW + lam * P, W.T)
+        H = W @ S
+        r = psi_frames - psi_frames @ H.T
+        dof = W.shape[0] - np.trace(H)
+        if dof <= 1e-6:
+            continue
+        gcv = float(np.mean(r**2)) / dof**2
+        if best is None or gcv < best[0]:
+            best = (gcv, lam, S)
+    if best is None:  # as many free parameters as chords: the least-curvature interpolant
+        lam = scale * 1e-8
+        return np.linalg.solve(WtW + lam * P, W.T), lam
+    return best[2], best[1]
+
+
+def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, max_points: int,
+                 hyper_points: int, n_restarts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """GP smoothing of every column of A (NaN = missing) with shared hyperparameters."""
+    from crgpr.gp import fit_gp
+
+    ok = np.isfinite(A)
+    full = ok.all(axis=1)
+    init = {"lengthscales": 0.2, "sigma_f": 0.1, "sigma_n": max(noise_std_min, 1e-3)}
+
+    def pick(idx: np.ndarray) -> np.ndarray:
+        if idx.size > max_points:
+            idx = idx[np.unique(np.linspace(0, idx.size - 1, max_points).round().astype(int))]
+        return idx
+
+    if full.sum() >= 30:
+        rows = pick(np.nonzero(full)[0])
+        Yh = A[rows]
+    else:  # few complete frames: the best-seen marker alone sets the hyperparameters
+        j = int(np.argmax(ok.sum(axis=0)))
+        rows = pick(np.nonzero(ok[:, j])[0])
+        Yh = A[rows, j]
+    gp = fit_gp(t[rows], Yh, kernel="matern52", basis="quadratic", standardise_y=False,
+                sigma_n_min=noise_std_min or None, n_restarts=n_restarts, seed=seed, init=init,
+                hyper_subset=hyper_points if rows.size > hyper_points else None, factorise=False)
+    ell_phys = np.asarray(gp.lengthscales) * gp.x_scale
+    m = np.empty_like(A)
+    d1 = np.empty_like(A)
+    d2 = np.empty_like(A)
+    # markers sharing the same usable samples share one factorisation
+    groups: dict[bytes, list[int]] = {}
+    for j in range(A.shape[1]):
+        groups.setdefault(np.packbits(ok[:, j]).tobytes(), []).append(j)
+    for cols in groups.values():
+        rows = pick(np.nonzero(ok[:, cols[0]])[0])
+        x_scale = float(np.std(t[rows])) or 1.0
+        fixed = {"sigma_f": gp.sigma_f, "lengthscales": ell_phys / x_scale, "sigma_n": gp.sigma_n}
+        g = fit_gp(t[rows], A[np.ix_(rows, cols)], kernel="matern52", basis="quadratic",
+                   standardise_y=False, fixed=fixed)
+        a0, a1, a2 = g.predict_derivatives(t)
+        shape = (t.size, len(cols))
+        m[:, cols], d1[:, cols], d2[:, cols] = a0.reshape(shape), a1.reshape(shape), a2.reshape(shape)
+    return m, d1, d2, float(gp.sigma_n)
+
+
+def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 0.0, seed: int = 0,
+                      max_points: int = 1500, hyper_points: int = 120, n_restarts: int = 1,
+                      spatial_fit_times: int = 40) -> Kinematics:
+    """q, v, a on the model grid and the measured times (module docstring, steps 1-3)."""
+    t = meas.t
+    x, vx, ax, nx = _time_smooth(t, meas.x, noise_std_min, seed, max_points, hyper_points, n_restarts)
+    y, vy, ay, ny = _time_smooth(t, meas.y, noise_std_min, seed + 1, max_points, hyper_points, n_restarts)
+    s_m = meas.s
+    if meas.has_base:  # a clamp does not move: the base marker's mean position
+        bx, by = float(np.nanmean(meas.x[:, 0])), float(np.nanmean(meas.y[:, 0]))
+        x, y = x[:, 1:], y[:, 1:]
+        vx, vy, ax, ay = vx[:, 1:], vy[:, 1:], ax[:, 1:], ay[:, 1:]
+        s_m = s_m[1:]
+    else:
+        bx = by = 0.0
+    n_t = t.size
+    z = np.zeros((n_t, 1))
+    pts = np.r_[0.0, s_m]
+    psi, dpsi, ddpsi = angle_kinematics(np.c_[z + bx, x], np.c_[z + by, y], np.c_[z, vx], np.c_[z, vy],
+                                        np.c_[z, ax], np.c_[z, ay])
+    W = chord_operator(pts, params)
+    rows = np.unique(np.linspace(0, n_t - 1, min(spatial_fit_times, n_t)).round().astype(int))
+    S, _ = spatial_operator(W, psi[rows])
+    phi, dphi, ddphi = psi @ S.T, dpsi @ S.T, ddpsi @ S.T
+    seg = params.ds * params.nu1_0
+    c, s = np.cos(phi), np.sin(phi)
+    zero = np.zeros((n_t, params.N + 1))
+
+    def integrate(dx: np.ndarray, dy: np.ndarray, x0: float = 0.0, y0: float = 0.0):
+        X, Y = zero.copy(), zero.copy()
+        X[:, 0], Y[:, 0] = x0, y0
+        X[:, 1:] = x0 + np.cumsum(seg * dx, axis=1)
+        Y[:, 1:] = y0 + np.cumsum(seg * dy, axis=1)
+        return X, Y
+
+    qx, qy = integrate(c, s, bx, by)
+    vxm, vym = integrate(-s * dphi, c * dphi)
+    axm, aym = integrate(-c * dphi**2 - s * ddphi, -s * dphi**2 + c * ddphi)
+    # pin the rebuilt rod to the smoothed markers: add the markers' differences, linear in
+    # s between them (0 at the base, constant beyond the last marker); where the markers are
+    # the model's nodes the translational kinematics are the markers' own GP derivatives
+    E = np.stack([np.interp(params.s, s_m, col) for col in np.eye(s_m.size)], axis=1)
+    E[params.s < s_m[0]] *= (params.s[params.s < s_m[0]] / s_m[0])[:, None]
+    Mk = marker_matrix(s_m, params)
+    qx, qy = qx + (x - qx @ Mk.T) @ E.T, qy + (y - qy @ Mk.T) @ E.T
+    vxm, vym = vxm + (vx - vxm @ Mk.T) @ E.T, vym + (vy - vym @ Mk.T) @ E.T
+    axm, aym = axm + (ax - axm @ Mk.T) @ E.T, aym + (ay - aym @ Mk.T) @ E.T
+    q = np.stack([qx, qy, node_angles(phi)], axis=-1)
+    v = np.stack([vxm, vym, node_angles(dphi)], axis=-1)
+    a = np.stack([axm, aym, node_angles(ddphi)], axis=-1)
+    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi[:, 0].copy(), s_m.copy())
+
+
+def marker_positions(q: np.ndarray, s_markers: np.ndarray, params: RodParams) -> np.ndarray:
+    """Positions (n_t, n_m, 2) of points at arc lengths s on rods q (n_t, N+1, 3).
+
+    Linear along each segment (exact for an unstretched rod: the segment is straight)."""
+    u = np.clip(np.asarray(s_markers, float) / params.ds, 0.0, params.N)
+    i = np.minimum(np.floor(u).astype(int), params.N - 1)
+    f = (u - i)[None, :, None]
+    return (1.0 - f) * q[:, i, :2] + f * q[:, i + 1, :2]
