@@ -34,6 +34,7 @@ include: "workflow/rules/uq.smk"
 include: "workflow/rules/discovery.smk"
 include: "workflow/rules/camera.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/oracle.smk"
 
 
 rule all:

@@ -14,6 +14,8 @@ rule uq_samples:
     output:
         samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
         diagnostics=f"{RESULTS}/uq/samples/diagnostics.json",
+    params:
+        cfg=cfg_params("seed", "uq"),
     log:
         "logs/uq/samples.log",
     benchmark:
@@ -37,6 +39,8 @@ rule uq_rollout:
         f"{RESULTS}/uq/{{angle}}.parquet",
     wildcard_constraints:
         angle=r"-?\d+",
+    params:
+        cfg=cfg_params("seed", "uq", "rod", "simulation"),
     log:
         "logs/uq/rollout/{angle}.log",
     benchmark:
@@ -63,6 +67,8 @@ rule uq_coverage:
             caption="../report/uq_coverage.rst",
             category="Uncertainty (RFF)",
         ),
+    params:
+        cfg=cfg_params("uq"),
     log:
         "logs/uq/coverage.log",
     benchmark:
@@ -89,6 +95,8 @@ rule uq_calibration:
             caption="../report/uq_calibration.rst",
             category="Uncertainty (RFF)",
         ),
+    params:
+        cfg=cfg_params("uq", "rod"),
     log:
         "logs/uq/calibration.log",
     benchmark:
@@ -117,6 +125,8 @@ rule uq_figure:
         ),
     wildcard_constraints:
         angle=r"-?\d+",
+    params:
+        cfg=cfg_params("uq"),
     log:
         "logs/uq/figure/{angle}.log",
     benchmark:

@@ -9,6 +9,7 @@ Public API:
   ``kernel_sum``;
 * sparse means (``sparse``): ``select_inducing``, ``dtc_fit``;
 * ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-B, RFF sampling).
+* ``exact``: ``ExactMean``, a fitted GP's exact posterior mean with truncated SE sums (oracle ablation).
 """
 
 from crgpr.gp._gpr import (

@@ -50,6 +50,40 @@ OBJECTIVE_MODELS: tuple[str, ...] = ("obj_n1", "obj_n2", "obj_m")
 ALL_MODELS = PAPER_MODELS + OBJECTIVE_MODELS
 MOMENTUM_MODELS = ("dH_dp_x", "dH_dp_y", "dH_dp_theta")
 
+# Paper Table II, for table2_hyperparameters.csv
+PAPER_TABLE2: dict[str, dict[str, Any]] = {
+    "q_x": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 2.28, "ell": "[3.22, 2.47, 181]",
+            "sigma_n": 3.4e-2, "n": 7910},
+    "q_y": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 1.66, "ell": "[3.11, 1.84, 131]",
+            "sigma_n": 3.4e-2, "n": 8652},
+    "dH_dtheta": {"kernel": "ARD-SE", "basis": "Constant", "sigma_f": 1.14,
+                  "ell": "[0.97, 1.86, 21.7, 4.28, 2.04, 51.1]", "sigma_n": 1.8e-3, "n": 18975},
+    "dH_dp_x": {"kernel": "SE", "basis": "None", "sigma_f": 134.7, "ell": "61.8", "sigma_n": 9.3e-3,
+                "n": 966},
+    "dH_dp_y": {"kernel": "SE", "basis": "None", "sigma_f": 698.3, "ell": "391.1", "sigma_n": 1.1e-2,
+                "n": 966},
+    "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
+                    "n": 980},
+}
+
+
+def paper_hyperparameters(name: str, x_scale: np.ndarray, y_scale: float, ard: bool,
+                          inputs_standardised: bool = False) -> dict[str, Any]:
+    """Table II's sigma_f, ell, sigma_n of model ``name`` in our standardised units (issue 11).
+
+    Read in ORIGINAL units (MATLAB fitrgp's default, Standardize = false): ell_std = ell / x_scale,
+    sigma_f_std = sigma_f / y_scale, sigma_n_std = sigma_n / y_scale. ``inputs_standardised``:
+    read ell as already standardised (fitrgp with Standardize = true scales the predictors only).
+    """
+    row = PAPER_TABLE2[name]
+    txt = str(row["ell"]).strip("[]")
+    ell = np.array([float(v) for v in txt.split(",")])
+    if not inputs_standardised:
+        ell = ell / np.asarray(x_scale, dtype=float)[: ell.size] if ard else ell / float(np.ravel(x_scale)[0])
+    return {"sigma_f": float(row["sigma_f"]) / y_scale, "lengthscales": ell,
+            "sigma_n": float(row["sigma_n"]) / y_scale}
+
+
 FEATURE_NAMES: dict[str, tuple[str, ...]] = {
     "q_x": ft.PAPER_Q_FEATURES, "q_y": ft.PAPER_Q_FEATURES, "dH_dtheta": ft.PAPER_THETA_FEATURES,
     "dH_dp_x": ("p_x",), "dH_dp_y": ("p_y",), "dH_dp_theta": ("p_theta",),

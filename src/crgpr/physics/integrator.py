@@ -190,21 +190,25 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
 
 
 def rod_length(q: np.ndarray) -> float:
-    """Length of the polygon through the nodes of one rod (N+1, 3)."""
-    return float(np.hypot(np.diff(q[:, 0]), np.diff(q[:, 1])).sum())
+    """Length of the polygon through the nodes of one rod (N+1, 3) (the longest of a batch)."""
+    return float(np.max(np.hypot(np.diff(q[..., 0], axis=-1), np.diff(q[..., 1], axis=-1)).sum(-1)))
 
 
 def diverged_nodes(q: np.ndarray, v: np.ndarray, base: np.ndarray, reach: float) -> np.ndarray:
     """The divergence policy (module docstring): True for every node (..., N+1) whose q or
     v = dq/dt is non-finite, with |v| >= MAX_SPEED, or farther than ``reach`` from ``base``."""
+    base = np.asarray(base, dtype=float)
+    bx, by = base[..., 0], base[..., 1]
+    if bx.ndim:  # one base per rod of a batch (..., 2) -> broadcast over the nodes
+        bx, by = bx[..., None], by[..., None]
     ok = (np.isfinite(q).all(-1) & np.isfinite(v).all(-1) & (np.abs(v) < MAX_SPEED).all(-1)
-          & (np.hypot(q[..., 0] - base[0], q[..., 1] - base[1]) <= reach))
+          & (np.hypot(q[..., 0] - bx, q[..., 1] - by) <= reach))
     return ~ok
 
 
 def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
               partial: Integration | None) -> SimulationDiverged:
-    node = int(np.nonzero(bad)[0][0])
+    node = int(np.nonzero(bad.reshape(-1, bad.shape[-1]))[1][0])
     return SimulationDiverged(
         f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: state "
         f"non-finite, speed >= {MAX_SPEED:g} or farther than {REACH:g} rod lengths from the "
@@ -261,14 +265,13 @@ def run_verlet(
     for the reach bound (default: that of q0). Returns an ``Integration`` whose ``v`` holds
     the state p. Raises SimulationDiverged (divergence policy of the module docstring).
     """
-    n = q0.shape[0]
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
     ks = free if kick_scale is None else kick_scale
-    base = q[0, :2].copy()
+    base = q[..., 0, :2].copy()
     reach = REACH * (rod_length(q) if length is None else float(length))
     n_rec = n_steps // every + 1
-    out_q = np.zeros((n_rec, n, 3))
+    out_q = np.zeros((n_rec, *q.shape))
     out_p = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     out_q[0], out_p[0] = q, p
@@ -358,10 +361,10 @@ def run_hamiltonian(
     H_p = p / (rho A) this is ``run_rod``'s exact exponential, so with the analytic H_z the
     two agree to round-off. ``v`` of the result holds the MOMENTA p per length;
     ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid over each damping
-    half-step; needs ``wds``).
+    half-step; needs ``wds``). States may carry leading batch axes (..., N+1, 3) (several
+    initial states integrated at once); ``dissipated`` is then summed over the batch.
     """
-    n = q0.shape[0]
-    wds = np.ones(n) if wds is None else np.asarray(wds, dtype=float)
+    wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
     zh = zeta * h
 

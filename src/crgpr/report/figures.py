@@ -113,3 +113,40 @@ def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, meth
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     _save(fig, out)
+
+
+def oracle_ablation_figure(table: pd.DataFrame, pointwise: pd.DataFrame, out: str | Path,
+                           paper_mean: float = 0.222) -> None:
+    """Issue 11 oracle ablation: RMSE(theta) per variant (left), pointwise errors / target std (right)."""
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [1.5, 1]})
+    order = list(dict.fromkeys(table["variant"]))
+    for k, v in enumerate(order):
+        sub = table[table["variant"] == v]
+        vals = sub["rmse_theta"].to_numpy(dtype=float)
+        ok = np.isfinite(vals)
+        ax1.bar(k, np.nanmean(vals) if ok.any() else 0.0, color="C0" if v == "all_oracle" else
+                ("C3" if v == "all_learned" else "C7"), alpha=0.6)
+        ax1.plot(np.full(ok.sum(), k), vals[ok], "k.", ms=4)
+        if (~ok).any():
+            ax1.text(k, ax1.get_ylim()[1] if ok.any() else 1.0, f"{(~ok).sum()} diverged", ha="center",
+                     fontsize=7, rotation=90, va="top")
+    ax1.axhline(paper_mean, color="C2", ls="--", label=f"paper cr_gpr mean {paper_mean}")
+    ax1.set_yscale("log")
+    ax1.set_xticks(range(len(order)), [v.replace("learned_", "learned ") for v in order], rotation=35,
+                   ha="right", fontsize=8)
+    ax1.set_ylabel(r"RMSE($\theta$) [rad], bars = mean over test angles")
+    ax1.set_title("rest oracle, named component learned")
+    ax1.legend(fontsize=8)
+    x = np.arange(len(pointwise))
+    floor = 1e-16
+    ax2.bar(x - 0.2, np.maximum(pointwise["oracle_rmse_over_std"], floor), 0.4, label="oracle", color="C0")
+    ax2.bar(x + 0.2, np.maximum(pointwise["learned_rmse_over_std"], floor), 0.4, label="learned (cr_gpr)",
+            color="C3")
+    ax2.axhline(1.0, color="k", lw=0.8, ls=":")
+    ax2.set_yscale("log")
+    ax2.set_xticks(x, pointwise["component"], rotation=35, ha="right", fontsize=8)
+    ax2.set_ylabel("RMS error / target std (85 deg, true H_z)")
+    ax2.set_title("pointwise, training trajectory")
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, out)

@@ -9,25 +9,12 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
+from crgpr.learning.gradient_models import PAPER_TABLE2
+
 # Paper Table II (gradient GPs): kernel, basis, sigma_f, lengthscales, sigma_n, n
-PAPER_TABLE2: dict[str, dict[str, Any]] = {
-    "q_x": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 2.28, "ell": "[3.22, 2.47, 181]",
-            "sigma_n": 3.4e-2, "n": 7910},
-    "q_y": {"kernel": "ARD-SE", "basis": "PureQuadratic", "sigma_f": 1.66, "ell": "[3.11, 1.84, 131]",
-            "sigma_n": 3.4e-2, "n": 8652},
-    "dH_dtheta": {"kernel": "ARD-SE", "basis": "Constant", "sigma_f": 1.14,
-                  "ell": "[0.97, 1.86, 21.7, 4.28, 2.04, 51.1]", "sigma_n": 1.8e-3, "n": 18975},
-    "dH_dp_x": {"kernel": "SE", "basis": "None", "sigma_f": 134.7, "ell": "61.8", "sigma_n": 9.3e-3,
-                "n": 966},
-    "dH_dp_y": {"kernel": "SE", "basis": "None", "sigma_f": 698.3, "ell": "391.1", "sigma_n": 1.1e-2,
-                "n": 966},
-    "dH_dp_theta": {"kernel": "SE", "basis": "None", "sigma_f": 8.05, "ell": "54.5", "sigma_n": 1.6e-1,
-                    "n": 980},
-}
 
 
 def table2(model_jsons: list[str | Path]) -> pd.DataFrame:

@@ -1,0 +1,233 @@
+"""Rule ``oracle_ablation`` (issue 11, part 1): which learned component breaks the paper's CR-GPR?
+
+Variants of the paper's model (features 'paper', Sec. III-B step 3, GPR 1-6), each rolled out
+by ``learned.LearnedRod`` + ``integrator.run_hamiltonian`` on every test angle:
+* ``all_oracle``: every component is its oracle (``learning.oracle``: the constitutive law
+  written in the same features);
+* ``learned_<c>``: component ``c`` is the fitted GP as the ``cr_gpr`` rollout evaluates it
+  (``gp.load_evaluator``, DTC), the other five are oracles;
+* ``all_learned``: the six fitted GPs (the ``cr_gpr`` model);
+* ``exact_dH_dtheta``: as ``learned_dH_dtheta`` but dH/dtheta is the EXACT posterior mean
+  (``gp.exact.ExactMean``, R&W eq. 2.41) of the fitted GP, its saved hyperparameters,
+  conditioned on a seeded subset of ``exact_subset`` training points (not the DTC mean).
+The angles of one variant are integrated as one batch (leading batch axis; a batch that
+diverges is rerun angle by angle and the diverged angles are recorded with NaN metrics).
+
+Gap table: at the ground-truth states of the test angles (every ``exact_check_every``-th record,
+t > 0), the RMS of DTC mean - exact subset mean of dH/dtheta and of each against the true H_theta,
+relative to the target's std there.
+
+Pointwise table: on the ground-truth training trajectory (exact simulator states), the RMS
+error of each oracle and of each learned component against the true discrete H_z
+(``rod.variational_derivative``; q_x, q_y as tip-to-base sums), next to the target's std.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from crgpr.config import rod_params, sim_settings
+from crgpr.gp import GP, load_evaluator
+from crgpr.gp.exact import ExactMean
+from crgpr.io import read_parquet, write_csv
+from crgpr.learning import features as ft
+from crgpr.learning.learned import LearnedRod
+from crgpr.learning.oracle import ORACLE_COMPONENTS, mixed_components, oracle_components
+from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import free_mask, straight_rod, variational_derivative
+from crgpr.physics.simulate import Trajectory, trajectory_frame, trajectory_from_frame
+from crgpr.report.figures import oracle_ablation_figure
+from crgpr.report.metrics import accuracy
+
+log = logging.getLogger(__name__)
+
+
+def variants() -> dict[str, tuple[str, ...]]:
+    """Variant name -> names of the LEARNED components (the rest are oracles)."""
+    out: dict[str, tuple[str, ...]] = {"all_oracle": ()}
+    out.update({f"learned_{c}": (c,) for c in ORACLE_COMPONENTS})
+    out["all_learned"] = ORACLE_COMPONENTS
+    return out
+
+
+EXACT_VARIANTS: dict[str, tuple[str, ...]] = {"exact_dH_dtheta": ("dH_dtheta",)}
+
+
+def exact_subset_mean(stem: str | Path, n_subset: int, seed: int, tol: float) -> tuple[ExactMean, np.ndarray]:
+    """Exact posterior mean of the saved GP ``stem`` conditioned on a seeded subset of its data.
+
+    Hyperparameters and standardisation are the saved ones; the subset is ``min(n_subset, n)``
+    rows drawn uniformly without replacement (``numpy.random.default_rng(seed)``), sorted.
+    Returns the mean and the chosen row indices.
+    """
+    gp = GP.load(stem)
+    m = min(int(n_subset), gp.n)
+    idx = np.sort(np.random.default_rng(seed).choice(gp.n, size=m, replace=False))
+    sub = GP(kernel=gp.kernel, ard=gp.ard, basis=gp.basis, sigma_f=gp.sigma_f, lengthscales=gp.lengthscales,
+             sigma_n=gp.sigma_n, x_mean=gp.x_mean, x_scale=gp.x_scale, y_mean=gp.y_mean, y_scale=gp.y_scale,
+             X=gp.X[idx], Y=gp.Y[idx], lml=float("nan"), info=dict(gp.info))
+    return ExactMean(sub, tol=tol), idx
+
+
+def _theta_states(gt: Trajectory, P: RodParams, every: int, center: float | None):
+    q, p = gt.q[1::every], gt.p[1::every]
+    hz = np.array([variational_derivative(a, b, P) for a, b in zip(q, p, strict=True)])
+    X = ft.paper_theta_features(q[..., 0], q[..., 1], q[..., 2], P.ds, center)
+    return X, hz[:, 1:, 2]
+
+
+def exact_gap(gts: dict[float, Trajectory], P: RodParams, dtc: Any, exact: Any, center: float | None,
+              every: int) -> pd.DataFrame:
+    """RMS of DTC - exact, DTC - truth, exact - truth of dH/dtheta over std(truth); per angle, pooled."""
+    rows, pooled = [], []
+    for a, gt in gts.items():
+        X, tgt = _theta_states(gt, P, every, center)
+        d = np.asarray(Flat(dtc)(X)).reshape(tgt.shape)
+        e = np.asarray(Flat(exact)(X)).reshape(tgt.shape)
+        pooled.append((d.ravel(), e.ravel(), tgt.ravel()))
+        rows.append((f"{a:g}", d.ravel(), e.ravel(), tgt.ravel()))
+    rows.append(("all", *(np.concatenate([p[k] for p in pooled]) for k in range(3))))
+    out = []
+    for name, d, e, t in rows:
+        std = float(np.std(t))
+        rms = lambda v: float(np.sqrt(np.mean(v**2)))  # noqa: E731
+        out.append({"theta0_deg": name, "n_rows": int(t.size), "target_std": std,
+                    "dtc_minus_exact_over_std": rms(d - e) / std, "dtc_rmse_over_std": rms(d - t) / std,
+                    "exact_rmse_over_std": rms(e - t) / std})
+    return pd.DataFrame(out)
+
+
+class Flat:
+    """Evaluate a 2-D-only component on feature arrays with leading batch axes."""
+
+    def __init__(self, comp: Any):
+        self.comp = comp
+        if hasattr(comp, "slope"):
+            self.slope = comp.slope
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        if X.ndim <= 2:
+            return self.comp(X)
+        return np.asarray(self.comp(X.reshape(-1, X.shape[-1]))).reshape(X.shape[:-1])
+
+
+def _rollout_batch(model: LearnedRod, angles: list[float], settings: SimSettings) -> list[Trajectory]:
+    P = model.params
+    q0 = np.stack([straight_rod(math.radians(a), P) for a in angles])
+    out = run_hamiltonian(q0, np.zeros_like(q0), model.force, model.velocity, free_mask(P), P.zeta,
+                          settings.dt, settings.n_steps, settings.record_every, model.wds,
+                          f"oracle ablation at {angles} deg", velocity_slope=model.velocity_slope)
+    return [Trajectory(float(a), out.t, out.q[:, b], out.v[:, b], P) for b, a in enumerate(angles)]
+
+
+def pointwise_errors(gt_train: Trajectory, params: RodParams, learned: dict[str, Any],
+                     center: float | None, theta_closure: str) -> pd.DataFrame:
+    """RMS error of each oracle and learned component against the true discrete H_z."""
+    P = params
+    q, p = gt_train.q[1:], gt_train.p[1:]  # t > 0
+    hz = np.array([variational_derivative(a, b, P) for a, b in zip(q, p, strict=True)])
+    x, y, th = q[..., 0], q[..., 1], q[..., 2]
+    Xq = ft.paper_q_features(x, y, th, P.ds, center)
+    Xt = ft.paper_theta_features(x, y, th, P.ds, center)
+    cases = {"q_x": (Xq, ft.q_from_hz(hz[..., 0], P)), "q_y": (Xq, ft.q_from_hz(hz[..., 1], P)),
+             "dH_dtheta": (Xt, hz[:, 1:, 2])}
+    for k, c in enumerate(("dH_dp_x", "dH_dp_y", "dH_dp_theta")):
+        cases[c] = (p[:, 1:, k][..., None], hz[:, 1:, 3 + k])
+    oracles = oracle_components(P, theta_closure)
+    rows = []
+    for name, (X, tgt) in cases.items():
+        o = np.asarray(oracles[name](X))
+        lrn = np.asarray(Flat(learned[name])(X)).reshape(tgt.shape)
+        std = float(np.std(tgt))
+        e_o = float(np.sqrt(np.mean((o.reshape(tgt.shape) - tgt) ** 2)))
+        e_l = float(np.sqrt(np.mean((lrn - tgt) ** 2)))
+        row = {"component": name, "target_std": std, "oracle_rmse": e_o, "oracle_rmse_over_std": e_o / std,
+               "learned_rmse": e_l, "learned_rmse_over_std": e_l / std}
+        if name == "dH_dtheta":  # where the closure's error lives: interior nodes vs the free tip
+            ei = o.reshape(tgt.shape)[:, :-1] - tgt[:, :-1]
+            row["oracle_rmse_interior"] = float(np.sqrt(np.mean(ei**2)))
+            row["oracle_rmse_tip"] = float(np.sqrt(np.mean((o.reshape(tgt.shape)[:, -1] - tgt[:, -1]) ** 2)))
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def run_variant(variant: str, names: tuple[str, ...], sources: dict[str, Any], P: RodParams, S: SimSettings,
+                center: float | None, theta_closure: str, gts: dict[float, pd.DataFrame],
+                evaluator: str) -> list[dict[str, Any]]:
+    """Roll out one variant (``names`` from ``sources``, the rest oracles) on every test angle."""
+    angles = sorted(gts)
+    model = LearnedRod(mixed_components(sources, P, names, theta_closure), "paper", P, center)
+    t0 = time.perf_counter()
+    status: dict[float, str] = {}
+    try:
+        trajs = dict(zip(angles, _rollout_batch(model, angles, S), strict=True))
+    except SimulationDiverged:
+        trajs = {}
+        for a in angles:
+            try:
+                trajs[a] = _rollout_batch(model, [a], S)[0]
+            except SimulationDiverged as exc:
+                status[a] = f"diverged at t = {exc.t:.4g} s"
+    secs = time.perf_counter() - t0
+    log.info("%s: %.1f s for %d angles", variant, secs, len(angles))
+    rows = []
+    for a in angles:
+        row: dict[str, Any] = {"variant": variant, "learned": " ".join(names) or "none", "theta0_deg": a}
+        if a in trajs:
+            row.update(accuracy(gts[a], trajectory_frame(trajs[a]), P.L0, f"ground truth {a:g}",
+                                f"{variant} {a:g}"))
+            row["status"] = "ok"
+        else:
+            row.update({"rmse_theta": math.nan, "r2_theta": math.nan, "tip_rmse_over_L": math.nan,
+                        "group_nrmse": math.nan, "status": status[a]})
+        row["seconds_batch"] = secs
+        row["learned_evaluator"] = evaluator if names else "none"
+        rows.append(row)
+    return rows
+
+
+def oracle_ablation(cfg: dict[str, Any], theta_closure: str, model_dir: str, gt_train: str,
+                    gt_tests: list[str], out_csv: str, out_pointwise: str, out_fig: str,
+                    exact_subset: int, exact_seed: int, exact_tol: float, exact_check_every: int,
+                    out_gap: str) -> pd.DataFrame:
+    """Run every variant on every test angle; write the two tables and the figure."""
+    P, S = rod_params(cfg), sim_settings(cfg)
+    mdir = Path(model_dir)
+    learned = {c: Flat(load_evaluator(mdir / c)) for c in ORACLE_COMPONENTS}
+    center = learned["q_x"].comp.meta.get("theta_center")
+    gts = {}
+    for path in gt_tests:
+        df = read_parquet(path)
+        gts[float(df["theta0_deg"].iloc[0])] = df
+    exact, idx = exact_subset_mean(mdir / "dH_dtheta", exact_subset, exact_seed, exact_tol)
+    sources = {**learned, "dH_dtheta": Flat(exact)}
+    rows = []
+    for variant, names in variants().items():
+        rows += run_variant(variant, names, learned, P, S, center, theta_closure, gts, "DTC (load_evaluator)")
+    for variant, names in EXACT_VARIANTS.items():
+        rows += run_variant(variant, names, sources, P, S, center, theta_closure, gts,
+                            f"ExactMean on {idx.size} seeded training points (seed {exact_seed})")
+    table = pd.DataFrame(rows)
+    table["theta_closure"] = theta_closure
+    write_csv(table, out_csv)
+    train = trajectory_from_frame(read_parquet(gt_train), P)
+    pw = pointwise_errors(train, P, learned, center, theta_closure)
+    pw["trajectory"] = f"ground truth {train.theta0_deg:g} deg (exact simulator states, t > 0)"
+    write_csv(pw, out_pointwise)
+    tests = {a: trajectory_from_frame(df, P) for a, df in gts.items()}
+    gap = exact_gap(tests, P, learned["dH_dtheta"].comp, exact, center, exact_check_every)
+    gap["exact_subset"] = idx.size
+    gap["exact_seed"] = exact_seed
+    write_csv(gap, out_gap)
+    oracle_ablation_figure(table, pw, out_fig)
+    return table
+

@@ -1,0 +1,48 @@
+# Issue 11, part 1: oracle ablation of the paper's CR-GPR (each learned component replaced by
+# the constitutive law written in the same features), on every test angle.
+
+
+rule oracle_ablation:
+    input:
+        code=code_closure("oracle_ablation.py"),
+        models=expand(f"{RESULTS}/models/gp/{{m}}.json",
+                      m=["q_x", "q_y", "dH_dtheta", "dH_dp_x", "dH_dp_y", "dH_dp_theta"]),
+        gt_train=f"{RESULTS}/ground_truth/{config['angles']['train_deg']}.parquet",
+        gt_tests=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+    output:
+        table=f"{RESULTS}/tables/oracle_ablation.csv",
+        pointwise=f"{RESULTS}/tables/oracle_pointwise.csv",
+        gap=f"{RESULTS}/tables/oracle_exact_gap.csv",
+        figure=report(
+            f"{RESULTS}/figures/oracle_ablation.png",
+            caption="../report/oracle_ablation.rst",
+            category="CR-GPR (Tables I, II, IV)",
+        ),
+    params:
+        rod=config["rod"],
+        simulation=config["simulation"],
+        theta_closure=config["oracle"]["theta_closure"],
+        exact_subset=config["oracle"]["exact_subset"],
+        exact_seed=config["oracle"]["exact_seed"],
+        exact_tol=config["oracle"]["exact_tol"],
+        exact_check_every=config["oracle"]["exact_check_every"],
+    log:
+        "logs/tables/oracle_ablation.log",
+    benchmark:
+        "benchmarks/tables/oracle_ablation.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        ENV
+    script:
+        "../scripts/oracle_ablation.py"
+
+
+ALL_TARGETS.extend([
+    f"{RESULTS}/tables/oracle_ablation.csv",
+    f"{RESULTS}/tables/oracle_pointwise.csv",
+    f"{RESULTS}/tables/oracle_exact_gap.csv",
+    f"{RESULTS}/figures/oracle_ablation.png",
+])
