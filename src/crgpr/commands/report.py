@@ -110,8 +110,8 @@ def paper_tables(values: str, accuracy: str | None, hyper: str | None, timing: s
     """Rule ``paper_tables``: every number and claim of the paper beside ours (csv, md, claims).
 
     ``noise``: ``noise_ablation.csv`` of the ``sweeps`` target (issue 14). The rule leaves it
-    out (the ablation is not part of ``all``), so its camera-noise claims read "not evaluated"
-    there; ``crgpr paper-tables`` after ``snakemake sweeps`` evaluates them.
+    out (the ablation is not part of ``all``), so the claims on it are left out of the tables
+    (``report.paper.sweep_claims``); ``crgpr paper-tables`` after ``snakemake sweeps`` adds them.
     """
     paper_mod.build(values, accuracy, hyper, timing, uq, out_csv, out_md, out_claims, noise)
 
