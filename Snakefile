@@ -32,6 +32,7 @@ include: "workflow/rules/models.smk"
 include: "workflow/rules/rollout.smk"
 include: "workflow/rules/uq.smk"
 include: "workflow/rules/discovery.smk"
+include: "workflow/rules/camera.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/oracle.smk"
 

@@ -81,3 +81,20 @@ def test_committed_tables_are_regenerated_by_current_code(tmp_path):
     for path in outs.values():
         committed = (TABLES / path.name).read_bytes()
         assert path.read_bytes() == committed, f"{path.name} differs from the committed table"
+
+
+def test_noise_claims_belong_to_the_sweeps_target(tmp_path):
+    """Without noise_ablation.csv (rule paper_tables in `all`) the noise claims are left out and
+    named in the markdown; with it (after `snakemake sweeps`) they are evaluated."""
+    noise_ids = {c["id"] for c in load_values(VALUES)["claims"] if "noise:" in c["check"]}
+    assert noise_ids
+    out = [str(tmp_path / n) for n in ("q.csv", "q.md", "c.csv")]
+    _, ct = build(str(VALUES), None, None, None, None, *out)
+    assert noise_ids.isdisjoint(ct["id"])
+    assert all(i in Path(out[1]).read_text() for i in noise_ids)
+    rows = [{"noise_mm": n, "prefilter": p, "features": f, "rmse_theta_mean_finite": 0.1 + n * (p == "fd")}
+            for n in (0.0, 2.0) for p in ("gp", "fd") for f in ("objective", "paper")]
+    pd.DataFrame(rows).to_csv(tmp_path / "noise.csv", index=False)
+    _, ct = build(str(VALUES), None, None, None, None, *out, noise=str(tmp_path / "noise.csv"))
+    verdicts = ct.set_index("id")["verdict"]
+    assert noise_ids <= set(verdicts.index) and set(verdicts[list(noise_ids)]) == {HOLDS}

@@ -61,7 +61,9 @@ def smoke_repo(tmp_path_factory):
     repo = tmp_path_factory.mktemp("repo") / "crgpr"
     shutil.copytree(ROOT, repo, ignore=COPY_IGNORE)
     work = tmp_path_factory.mktemp("smoke")
-    res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-j2", "all", snakefile=repo / "Snakefile")
+    # `sweeps`: the camera noise ablation (not in `all`, workflow/rules/camera.smk)
+    res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-j2", "all", "sweeps",
+                    snakefile=repo / "Snakefile")
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return repo, work
 
@@ -87,7 +89,7 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
     acc = read_parquet(res / "metrics" / "accuracy.parquet",
                        ["method", "theta0_deg", "rmse_theta", "r2_theta", "tip_rmse_over_L", "group_nrmse"])
     assert {"cr_gpr", "cr_gpr_fd", "cr_gpr_objective", "blackbox_gp", "pinn_physics", "pinn_data_1",
-            "pinn_data_8"} <= set(acc["method"])
+            "pinn_data_8", "cr_gpr_objective_camera"} <= set(acc["method"])
     assert set(acc["theta0_deg"]) == {60.0, 125.0}
     assert np.all(acc["rmse_theta"] >= 0)
     tables = res / "tables"
@@ -95,6 +97,7 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
         "table4_ablation.csv": [], "baselines.csv": [], "uq_coverage.csv": ["angle", "theta_coverage"],
         "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
+        "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
         "oracle_exact_gap.csv": ["theta0_deg", "dtc_minus_exact_over_std", "exact_rmse_over_std"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",

@@ -17,6 +17,7 @@ COMMAND_MODULES: list[str] = [
     "crgpr.commands.rollout",
     "crgpr.commands.report",
     "crgpr.commands.discovery",
+    "crgpr.commands.learn",
 ]
 
 

@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import load_config
+from crgpr.config import ConfigError, load_config
 from crgpr.learning import learned
 
 
@@ -23,11 +23,26 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("rollout", help="step 4: simulate a learned CR-GPR model",
                        description="Integrate dz/dt = (J - R) H_z_hat + G u (eq. (17)) from the "
                                    "straight rod at rest.")
-    p.add_argument("--method", required=True, help="a key of rollouts.methods (cr_gpr, ...)")
+    p.add_argument("--method", help="a key of rollouts.methods (cr_gpr, ...); without it, the "
+                   "features and rod are read from MODELS/manifest.json (a crgpr learn directory)")
     p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
-    p.add_argument("--models", required=True, help="directory of the method's model files")
+    p.add_argument("--models", required=True, help="directory of the model files")
     p.add_argument("--out", required=True)
     p.add_argument("--energy-out")
+    p.add_argument("--t-end", type=float,
+                   help="simulated time [s] (manifest models; default simulation.t_end_s)")
     p.add_argument("--config", default="config.yaml")
-    p.set_defaults(func=lambda a: learned.run_rollout(load_config(a.config), a.method, a.theta0, a.models,
-                                                      a.out, a.energy_out))
+    p.set_defaults(func=_cli_rollout)
+
+
+def _cli_rollout(a: argparse.Namespace) -> None:
+    cfg = load_config(a.config)
+    if a.method is None:
+        from crgpr.commands.learn import rollout_models
+
+        rollout_models(cfg, a.models, a.theta0, a.out, a.energy_out, a.t_end)
+    elif a.t_end is not None:
+        raise ConfigError("--t-end applies to manifest models (without --method); configured methods "
+                          "use simulation.t_end_s")
+    else:
+        learned.run_rollout(cfg, a.method, a.theta0, a.models, a.out, a.energy_out)

@@ -104,8 +104,13 @@ def model_spec(cfg: dict[str, Any], name: str) -> dict[str, Any]:
 
 
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
-                  center: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """All (X, y) samples of one model from the prefilter arrays (before subsampling)."""
+                  center: float | None, trim_ends: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """All (X, y) samples of one model from the prefilter arrays (before subsampling).
+
+    ``trim_ends``: leave out the first and last ``trim_ends`` segments (nodes) of the
+    multi-dimensional models, where angles derived from positions are extrapolations
+    (camera data, ``learning.camera``); the momentum models keep every node.
+    """
     x, y, th = arr["x"], arr["y"], arr["theta"]
     ds = params.ds
     hz = ft.hz_targets(arr, params)
@@ -133,6 +138,8 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
             X, tgt = ft.objective_m_features(x, y, th, ds), ft.moments_from_htheta(hz[..., 2], c, params)
     else:
         raise ConfigError(f"unknown gradient model {name!r}")
+    if trim_ends and name not in MOMENTUM_MODELS:
+        X, tgt = X[:, trim_ends:-trim_ends], tgt[:, trim_ends:-trim_ends]
     return X.reshape(-1, X.shape[-1]), tgt.reshape(-1)
 
 
@@ -217,25 +224,36 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
     return gp, arrays, report
 
 
+def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray], params: RodParams,
+                       out_stem: str | Path, source: str, prefilter_method: str,
+                       extra: dict[str, Any] | None = None, trim_ends: int = 0) -> dict[str, Any]:
+    """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
+
+    ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
+    to the model's JSON; ``trim_ends`` see ``training_data``. Used by stage 2 (prefilter
+    files) and by ``crgpr learn`` (camera data).
+    """
+    gm = cfg["gradient_models"]
+    spec = model_spec(cfg, name)
+    if arr["x"].shape[1] != params.N + 1:
+        raise ValueError(f"{source}: {arr['x'].shape[1]} nodes but the rod has N + 1 = {params.N + 1}")
+    center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
+    X, y = training_data(arr, params, name, center, trim_ends)
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+        raise ValueError(f"{source}: non-finite features or targets for model {name}")
+    seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
+    gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
+    meta = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
+            "prefilter": prefilter_method, "source": str(source), "seed": seed, **report,
+            "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py", **(extra or {})}
+    gp.save(out_stem, extra=meta, extra_arrays=arrays)
+    return meta
+
+
 def train_model(cfg: dict[str, Any], name: str, prefiltered: str | Path, out_stem: str | Path,
                 prefilter_method: str = "gp") -> dict[str, Any]:
     """Build the data set of ``name`` from a prefilter Parquet file, fit, and save."""
-    params = rod_params(cfg)
-    gm = cfg["gradient_models"]
-    spec = model_spec(cfg, name)
     arr = prefiltered_arrays(read_prefiltered(prefiltered))
-    if arr["x"].shape[1] != params.N + 1:
-        raise ValueError(f"{prefiltered}: {arr['x'].shape[1]} nodes but config rod.N = {params.N}")
-    center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
-    X, y = training_data(arr, params, name, center)
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
-        raise ValueError(f"{prefiltered}: non-finite features or targets for model {name}")
-    seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
-    gp, arrays, report = fit_model(name, X, y, spec, gm, seed)
-    extra = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
-             "prefilter": prefilter_method, "source": str(prefiltered), "seed": seed, **report,
-             "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py"}
-    gp.save(out_stem, extra=extra, extra_arrays=arrays)
-    return extra
+    return train_model_arrays(cfg, name, arr, rod_params(cfg), out_stem, str(prefiltered), prefilter_method)
 
 

@@ -123,6 +123,22 @@ def _frame(traj: Trajectory, t: np.ndarray, z: np.ndarray, d1: np.ndarray, d2: n
     return pd.DataFrame(cols)
 
 
+def fd_time_derivatives(z: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and second derivatives along axis 0 (uniform step h): central differences,
+    second-order one-sided at the two ends (needs >= 3 samples; >= 4 for one-sided d2)."""
+    if z.shape[0] < 3:
+        raise ValueError("finite differences need at least 3 samples")
+    d1 = np.empty_like(z)
+    d2 = np.empty_like(z)
+    d1[1:-1] = (z[2:] - z[:-2]) / (2 * h)
+    d1[0] = (-3 * z[0] + 4 * z[1] - z[2]) / (2 * h)
+    d1[-1] = (3 * z[-1] - 4 * z[-2] + z[-3]) / (2 * h)
+    d2[1:-1] = (z[2:] - 2 * z[1:-1] + z[:-2]) / h**2
+    d2[0] = (2 * z[0] - 5 * z[1] + 4 * z[2] - z[3]) / h**2 if len(z) > 3 else d2[1]
+    d2[-1] = (2 * z[-1] - 5 * z[-2] + 4 * z[-3] - z[-4]) / h**2 if len(z) > 3 else d2[-2]
+    return d1, d2
+
+
 def fd_prefilter(traj: Trajectory, n_t_out: int) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Central finite differences in time on the full recorded data (ablation, Table V)."""
     z = traj.z
@@ -133,14 +149,7 @@ def fd_prefilter(traj: Trajectory, n_t_out: int) -> tuple[pd.DataFrame, dict[str
     if not np.allclose(dt, dt[0], rtol=1e-6, atol=1e-12):
         raise ValueError("fd prefilter needs uniformly sampled data")
     h = float(dt[0])
-    d1 = np.empty_like(z)
-    d2 = np.empty_like(z)
-    d1[1:-1] = (z[2:] - z[:-2]) / (2 * h)
-    d1[0] = (-3 * z[0] + 4 * z[1] - z[2]) / (2 * h)
-    d1[-1] = (3 * z[-1] - 4 * z[-2] + z[-3]) / (2 * h)
-    d2[1:-1] = (z[2:] - 2 * z[1:-1] + z[:-2]) / h**2
-    d2[0] = (2 * z[0] - 5 * z[1] + 4 * z[2] - z[3]) / h**2 if len(t) > 3 else d2[1]
-    d2[-1] = (2 * z[-1] - 5 * z[-2] + 4 * z[-3] - z[-4]) / h**2 if len(t) > 3 else d2[-2]
+    d1, d2 = fd_time_derivatives(z, h)
     idx = output_indices(len(t), n_t_out)
     meta = {"method": "fd", "dt_data_s": h, "n_t_out": int(idx.size)}
     return _frame(traj, t[idx], z[idx], d1[idx], d2[idx]), meta

@@ -1,0 +1,229 @@
+"""``crgpr learn``: CR-GPR gradient models from a user's trajectory file (positions only or full state).
+
+Input: the measured-data format of ``crgpr discover`` (Parquet, one row per (t, node):
+``t, node, x, y``; validated by ``crgpr.discovery.measured``), or a full-state file with
+``theta, p_x, p_y, p_theta`` as well. Positions only: theta, momenta and derivatives by
+``crgpr.learning.camera`` (paper Sec. III-B Remark); full state: the stage-1 prefilter
+(``crgpr.learning.prefilter``). The gradient GPs are then fitted by
+``gradient_models.train_model_arrays``, exactly as in stage 2. The model's rod is the nominal
+``rod`` of the config on the measured node grid (N = measured segments).
+
+MODEL_DIR holds one ``.npz`` + ``.json`` per gradient model and ``manifest.json`` (written
+last; its presence marks a complete directory): features, prefilter, input kind, source file,
+rod parameters, the derived-state report (estimated noise level, frames used) and the seeds,
+so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from crgpr.config import ConfigError, rod_params, sim_settings
+from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured
+from crgpr.io import code_version, read_parquet, write_json, write_parquet
+from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
+from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays
+from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
+from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
+from crgpr.physics.integrator import SimulationDiverged
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import Trajectory, trajectory_frame
+
+MANIFEST = "manifest.json"
+FEATURES: tuple[str, ...] = ("objective", "paper")
+MOMENTUM_COLUMNS = ("p_x", "p_y", "p_theta")
+
+
+def model_names(features: str) -> list[str]:
+    """Gradient models of one feature set (constitutive part, then momenta)."""
+    if features not in FEATURES:
+        raise ConfigError(f"unknown feature set {features!r}; expected one of {FEATURES}")
+    comps = OBJECTIVE_COMPONENTS if features == "objective" else PAPER_COMPONENTS
+    return [*comps, *MOMENTUM_MODELS]
+
+
+def model_params(path: str | Path, cfg: dict[str, Any]) -> RodParams:
+    """The model's rod: ``rod`` of the config on the file's node grid.
+
+    A file with a ``node`` column puts its markers at s = node * ds with N = its largest
+    node (the camera's grid, ds = L0 / N); a file with ``s`` keeps the config's N, and its
+    markers must then lie on that grid (``learning.camera.check_node_grid``).
+    """
+    params = rod_params(cfg)
+    try:
+        nodes = pd.read_parquet(path, columns=["node"])["node"].to_numpy(dtype=float)
+    except Exception:  # noqa: BLE001 - no node column (or unreadable: the loader names the error)
+        return params
+    n = int(np.nanmax(nodes)) if nodes.size and np.isfinite(nodes).any() else 0
+    return replace(params, N=n) if n >= 1 else params
+
+
+def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(n_t, N+1) theta and (n_t, N+1, 3) momenta of a full-state file, or None (positions only)."""
+    df = read_parquet(path)
+    present = [c for c in MOMENTUM_COLUMNS if c in df.columns]
+    if not present:
+        return None
+    if len(present) < 3 or "theta" not in df.columns:
+        missing = [c for c in ("theta", *MOMENTUM_COLUMNS) if c not in df.columns]
+        raise MeasuredDataError(f"{path}: a full-state file needs theta, p_x, p_y, p_theta; "
+                                f"missing {missing}")
+    d = df.sort_values(["t", "node"], kind="stable")
+    out = np.empty((n_t, n_nodes, 4))
+    for k, c in enumerate((*MOMENTUM_COLUMNS, "theta")):
+        v = d[c].to_numpy(dtype=float)
+        if not np.all(np.isfinite(v)):
+            raise MeasuredDataError(f"{path}: column {c!r} has {int((~np.isfinite(v)).sum())} "
+                                    "non-finite value(s)")
+        if v.size != n_t * n_nodes:
+            raise MeasuredDataError(f"{path}: column {c!r} does not fill the (t, node) grid")
+        out[..., k] = v.reshape(n_t, n_nodes)
+    return out[..., 3], out[..., :3]
+
+
+def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], features: str = "objective",
+          prefilter_method: str = "gp") -> dict[str, Any]:
+    """Train the gradient models of ``features`` from a trajectory file into ``out_dir``."""
+    t_start = time.perf_counter()
+    names = model_names(features)
+    if prefilter_method not in PREFILTERS:
+        raise ConfigError(f"unknown prefilter {prefilter_method!r}; expected one of {PREFILTERS}")
+    if "camera" not in cfg:
+        raise ConfigError("config: missing section 'camera'")
+    cam = cfg["camera"]["learn"]
+    st = LearnSettings.from_config(cam)
+    disc = cfg["discovery"]
+    params = model_params(measured, cfg)
+    meas = load_measured(measured, params.L0, params.ds, ScreenSettings.from_config(disc))
+    seed = int(cfg["seed"]) + 3000
+    full = _full_state_momenta(measured, meas.t.size, meas.x.shape[1])
+    if full is None:
+        arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed)
+        kind = "positions"
+    else:
+        check_node_grid(meas, params)
+        theta, p = full
+        traj = Trajectory(math.nan, meas.t, np.stack([meas.x, meas.y, theta], axis=-1), p, params)
+        df, pmeta = prefilter(traj, prefilter_method, PrefilterSettings.from_config(cfg), seed)
+        arr = prefiltered_arrays(df)
+        state_report = {"prefilter": prefilter_method, "n_frames": int(meas.t.size),
+                        "n_frames_used": int(arr["t"].size), "rate_hz": meas.rate_hz,
+                        "n_nodes": int(meas.x.shape[1]), "prefilter_meta": pmeta}
+        kind = "full_state"
+    # positions only: H_p = p / m holds exactly by construction, a noise floor keeps the 1D GPs
+    # well conditioned (camera.learn.momentum_sigma_n_min, output units)
+    cfg_m = copy.deepcopy(cfg)
+    for m in MOMENTUM_MODELS:
+        spec = cfg_m["gradient_models"]["models"][m]
+        spec["sigma_n_min"] = max(float(spec["sigma_n_min"]), float(cam["momentum_sigma_n_min"]))
+    trim = int(cam["trim_ends"]) if kind == "positions" else 0
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MANIFEST).unlink(missing_ok=True)
+    reports = {}
+    for name in names:
+        meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
+                                  extra={"input": kind}, trim_ends=trim)
+        reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
+    manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
+                "source": str(measured), "rod": params.to_dict(), "state": state_report,
+                "trim_ends": trim, "models": names, "model_reports": reports, "seed": seed,
+                "seconds": time.perf_counter() - t_start, "code_version": code_version()}
+    write_json(manifest, out / MANIFEST)
+    return manifest
+
+
+def read_manifest(model_dir: str | Path) -> dict[str, Any]:
+    """The manifest of a ``crgpr learn`` model directory (clear error if absent)."""
+    path = Path(model_dir) / MANIFEST
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no model manifest (train the directory with crgpr learn)")
+    man = json.loads(path.read_text())
+    if man.get("kind") != "crgpr_models" or man.get("features") not in FEATURES:
+        raise ValueError(f"{path}: not a crgpr learn manifest")
+    return man
+
+
+def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
+    """The learned rod of a model directory, on the rod recorded in its manifest."""
+    man = read_manifest(model_dir)
+    params = RodParams.from_dict(man["rod"])
+    return LearnedRod.from_dir(model_dir, man["features"], params), man
+
+
+def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:
+    """The config's integrator settings (dt, record_every), optionally another t_end; dt checked."""
+    base = sim_settings(cfg)
+    if t_end is not None and not (math.isfinite(t_end) and t_end > 0):
+        raise ConfigError(f"--t-end {t_end}: must be a positive number of seconds")
+    st = SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
+                     record_every=base.record_every)
+    if st.dt >= params.dt_stable():
+        raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
+                          f"need < {params.dt_stable():.3g} s")
+    return st
+
+
+def rollout_models(cfg: dict[str, Any], model_dir: str | Path, theta0_deg: float, out: str | Path,
+                   energy_out: str | Path | None = None, t_end: float | None = None,
+                   label: str | None = None) -> Trajectory:
+    """Roll a ``crgpr learn`` model directory out from the straight rod at rest (stage 3)."""
+    model, man = load_learned(model_dir)
+    st = rollout_settings(cfg, model.params, t_end)
+    label = label or f"{man['features']}/{man['prefilter']} model {model_dir}"
+    t0 = time.perf_counter()
+    traj = rollout(model, theta0_deg, st, what=f"{label} at theta0 = {theta0_deg:g} deg")
+    meta = {"kind": "rollout", "method": label, "theta0_deg": theta0_deg, "features": man["features"],
+            "prefilter": man["prefilter"], "model_dir": str(model_dir), "trained_on": man["source"],
+            "seconds": time.perf_counter() - t0, "rod": model.params.to_dict(), "simulation": st.to_dict()}
+    write_parquet(trajectory_frame(traj), out, meta)
+    if energy_out is not None:
+        write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
+    return traj
+
+
+def try_rollout(model: LearnedRod, theta0_deg: float, st: SimSettings) -> tuple[Trajectory | None, dict]:
+    """A rollout that records a divergence instead of raising (for sweeps)."""
+    try:
+        return rollout(model, theta0_deg, st), {"diverged": False}
+    except SimulationDiverged as exc:
+        return None, {"diverged": True, "diverged_t_s": exc.t, "diverged_node": exc.node}
+
+
+def add_cli(sub: Any) -> None:
+    p = sub.add_parser("learn", help="train CR-GPR gradient models from a trajectory file",
+                       description="Train the gradient GPs of CR-GPR from measured positions "
+                                   "(t, node, x, y) or a full-state file (t, node, x, y, theta, p_x, "
+                                   "p_y, p_theta); theta and momenta are derived from positions "
+                                   "with the nominal rod's mass distribution.")
+    p.add_argument("--measured", required=True, help="Parquet file (the format of crgpr discover)")
+    p.add_argument("--out", required=True, help="model directory to write (npz/json + manifest.json)")
+    p.add_argument("--features", choices=FEATURES, default="objective")
+    p.add_argument("--prefilter", choices=PREFILTERS, default="gp")
+    p.add_argument("--config", default="config.yaml",
+                   help="config.yaml (nominal rod, camera, gradient_models)")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args: Any) -> None:
+    from crgpr.config import load_config
+
+    man = learn(args.measured, args.out, load_config(args.config), args.features, args.prefilter)
+    noise = man["state"].get("noise_std_m_estimated")
+    print(f"learned {man['features']} models ({man['prefilter']} prefilter, {man['input']} input, "
+          f"N = {man['rod']['N']}" + (f", noise {noise * 1e3:.3g} mm" if noise else "") +
+          f") in {man['seconds']:.1f} s; written to {args.out}")
+
+
+__all__ = ["learn", "load_learned", "read_manifest", "rollout_models", "try_rollout", "model_names"]

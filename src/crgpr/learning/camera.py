@@ -1,0 +1,165 @@
+"""The rod state and its derivatives from camera positions (paper Sec. III-B step 2 and its Remark).
+
+The paper's Remark: a real experiment observes positions only; theta follows from neighbouring
+positions and the momenta from the known mass distribution. Given measured node positions
+x_i(t), y_i(t) (``crgpr.discovery.measured.Measured``, validated by its loader), this module
+returns the arrays of the derivative data set E (eq. (12)) in the schema of
+``prefilter.prefiltered_arrays``, so the gradient GPs (``gradient_models.train_model_arrays``)
+are trained exactly as from the simulator's full state:
+
+* theta: segment angles phi_j = atan2(dy_j, dx_j), nodal angles theta_i = (phi_{i-1} + phi_i)/2
+  and linear extrapolation at the ends (``measured.node_angles``): exact for a rod without shear;
+* momenta per unit length (nominal rod): p_x = rho A dx/dt, p_y = rho A dy/dt,
+  p_theta = rho I dtheta/dt (the simulator's definition, ``physics.simulate.Trajectory``);
+* time derivatives by one of two prefilters:
+  ``gp``: the project's GP smoother of the positions (``measured.smooth_kinematics``:
+  Matern-5/2 + quadratic basis, hyperparameters and the noise level sigma_n fitted by the
+  marginal likelihood on the data in metres, so the noise is estimated, not given; angle rates
+  analytically from the smoothed position derivatives; segment angles smoothed along s);
+  ``fd``: central finite differences of the raw positions (``prefilter.fd_time_derivatives``),
+  angles from the raw positions: the paper's ablation alternative;
+* the clamped base: node 0 does not move, so its position and angle are the time means of the
+  (smoothed) values and its rates are zero (the extrapolated base angle is unbiased to first
+  order in the curvature);
+* frames within ``edge_trim_s`` of either end of the record are dropped (GP derivatives are
+  least certain there), then at most ``n_t_out`` evenly spaced frames are kept.
+
+Nothing here assumes the data came from our simulator: the node grid is the camera's
+(N = measured segments, s_i = i L0 / N), the time grid the camera's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from crgpr.discovery.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
+from crgpr.discovery.measured import Measured, MeasuredDataError
+from crgpr.learning.prefilter import fd_time_derivatives, output_indices, spatial_derivatives
+from crgpr.physics.params import RodParams
+from crgpr.physics.rod import STATE_NAMES
+
+PREFILTERS: tuple[str, ...] = ("gp", "fd")
+
+
+@dataclass(frozen=True)
+class LearnSettings:
+    """Section ``camera.learn`` of config.yaml (see its schema for units)."""
+
+    gp_max_points: int
+    hyper_points: int
+    spatial_smoothing: bool
+    edge_trim_s: float
+    n_t_out: int
+
+    @classmethod
+    def from_config(cls, c: dict) -> LearnSettings:
+        return cls(gp_max_points=int(c["gp_max_points"]), hyper_points=int(c["hyper_points"]),
+                   spatial_smoothing=bool(c["spatial_smoothing"]), edge_trim_s=float(c["edge_trim_s"]),
+                   n_t_out=int(c["n_t_out"]))
+
+
+def check_node_grid(meas: Measured, params: RodParams) -> None:
+    """Learning needs every node of the model grid (s_i = i ds) at every frame, none missing."""
+    if meas.s.size != params.N + 1 or not np.allclose(meas.s, params.s, atol=1e-9 * params.L0):
+        raise MeasuredDataError(f"{meas.source}: markers at s = {np.round(meas.s, 6).tolist()} m; "
+                                f"crgpr learn needs one per node of the model grid "
+                                f"(N + 1 = {params.N + 1}, s = i ds)")
+    bad = ~(np.isfinite(meas.x) & np.isfinite(meas.y))
+    if bad.any():
+        raise MeasuredDataError(f"{meas.source}: {int(bad.sum())} missing (NaN) or screened-out "
+                                "positions; crgpr learn needs complete frames")
+
+
+def fd_kinematics(meas: Measured) -> Kinematics:
+    """Raw positions, central differences in time, angles and their rates from the raw positions."""
+    h = meas.dt
+    x, y = meas.x, meas.y
+    vx, ax = fd_time_derivatives(x, h)
+    vy, ay = fd_time_derivatives(y, h)
+    phi, w, al = angle_kinematics(x, y, vx, vy, ax, ay)
+    q = np.stack([x, y, node_angles(phi)], axis=-1)
+    v = np.stack([vx, vy, node_angles(w)], axis=-1)
+    a = np.stack([ax, ay, node_angles(al)], axis=-1)
+    return Kinematics(meas.t, q, v, a, float("nan"), phi[:, 0].copy(), meas.s.copy())
+
+
+def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int) -> Kinematics:
+    """The GP prefilter of the positions (noise level fitted on the data), see module docstring.
+
+    ``discovery.kinematics.smooth_kinematics`` on the model grid; its spatial step always
+    smooths the angles (camera.learn.spatial_smoothing is no longer separate).
+    """
+    return smooth_kinematics(meas, params, seed=seed, max_points=st.gp_max_points,
+                             hyper_points=st.hyper_points)
+
+
+def kinematics(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
+    """Positions, velocities and accelerations (x, y, theta) by the chosen prefilter."""
+    check_node_grid(meas, params)
+    if prefilter == "gp":
+        return gp_kinematics(meas, params, st, seed)
+    if prefilter == "fd":
+        return fd_kinematics(meas)
+    raise ValueError(f"unknown prefilter {prefilter!r}; expected one of {PREFILTERS}")
+
+
+def clamp_base(kin: Kinematics) -> Kinematics:
+    """Clamped base: node 0 at its time-mean position and angle, zero rates."""
+    q, v, a = kin.q.copy(), kin.v.copy(), kin.a.copy()
+    q[:, 0, :] = q[:, 0, :].mean(axis=0)
+    v[:, 0, :] = 0.0
+    a[:, 0, :] = 0.0
+    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers)
+
+
+def kept_frames(t: np.ndarray, edge_trim_s: float, n_out: int) -> np.ndarray:
+    """Indices of the frames used for training: edges trimmed, at most n_out evenly spaced."""
+    inner = np.flatnonzero((t >= t[0] + edge_trim_s - 1e-12) & (t <= t[-1] - edge_trim_s + 1e-12))
+    if inner.size < 3:
+        raise ValueError(f"only {inner.size} frames remain after trimming {edge_trim_s:g} s at both "
+                         "ends of the record; record longer or lower camera.learn.edge_trim_s")
+    return inner[output_indices(inner.size, n_out)]
+
+
+def state_arrays(kin: Kinematics, params: RodParams, idx: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Arrays of the derivative data set E (schema of ``prefilter.prefiltered_arrays``).
+
+    z = (x, y, theta, rho A vx, rho A vy, rho I omega); dz/dt and d2z/dt2 from the kinematics
+    (d2p/dt2, which no target uses, by central differences of dp/dt); spatial derivatives on
+    the node grid of ``params`` (N must equal the measured segments).
+    """
+    if kin.q.shape[1] != params.N + 1:
+        raise ValueError(f"{kin.q.shape[1]} measured nodes but the model has N + 1 = {params.N + 1}")
+    mass = np.array([params.rhoA, params.rhoA, params.rhoI])
+    z = np.concatenate([kin.q, kin.v * mass], axis=-1)
+    d1 = np.concatenate([kin.v, kin.a * mass], axis=-1)
+    h = float(np.median(np.diff(kin.t)))
+    d2p = fd_time_derivatives(d1[..., 3:], h)[0]
+    d2 = np.concatenate([kin.a, d2p], axis=-1)
+    sel = slice(None) if idx is None else idx
+    out: dict[str, np.ndarray] = {"t": kin.t[sel]}
+    for k, name in enumerate(STATE_NAMES):
+        out[name] = z[sel, :, k]
+        out[f"d{name}_dt"] = d1[sel, :, k]
+        out[f"d2{name}_dt2"] = d2[sel, :, k]
+    out["s"] = np.broadcast_to(params.s, out["x"].shape).copy()
+    out["dx_ds"], out["dy_ds"], out["d2theta_ds2"] = spatial_derivatives(out["x"], out["y"], out["theta"],
+                                                                         params.ds)
+    return out
+
+
+def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int
+                       ) -> tuple[dict[str, np.ndarray], dict]:
+    """Measured positions -> training arrays and a report (noise level, frames used)."""
+    kin = clamp_base(kinematics(meas, params, prefilter, st, seed))
+    idx = kept_frames(kin.t, st.edge_trim_s, st.n_t_out)
+    arr = state_arrays(kin, params, idx)
+    if not all(np.all(np.isfinite(v)) for v in arr.values()):
+        raise ValueError(f"{meas.source}: the derived state has non-finite values")
+    report = {"prefilter": prefilter, "n_frames": int(meas.t.size), "n_frames_used": int(idx.size),
+              "rate_hz": meas.rate_hz, "n_nodes": int(meas.x.shape[1]),
+              "noise_std_m_estimated": None if np.isnan(kin.noise_std_m) else float(kin.noise_std_m),
+              "edge_trim_s": st.edge_trim_s}
+    return arr, report
