@@ -47,8 +47,11 @@ def test_every_rule_declares_benchmark_threads_mem_and_runtime():
         [sys.executable, "-m", "snakemake", "--list-rules", "-s", str(ROOT / "Snakefile")],
         cwd=ROOT, capture_output=True, text=True, check=True,
     ).stdout.split()
+    targets = {"all", "sweeps"}  # rules that only collect other rules' outputs
     assert set(listed) - {"all"} == set(rules)
     for r in rules.values():
+        if r.name in targets:
+            continue
         assert r.benchmark and r.benchmark.startswith("benchmarks/"), r.name
         assert r.mem_mb is not None and 100 <= r.mem_mb <= 16000, r.name
         assert r.runtime is not None and 1 <= r.runtime <= 240, r.name
@@ -66,7 +69,7 @@ def test_benchmark_files_map_to_exactly_one_rule():
         "benchmarks/uq/samples.tsv": "uq_samples",
     }
     for path, rule in examples.items():
-        owners = [r.name for r in rules.values() if r.pattern().match(path)]
+        owners = [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)]
         assert owners == [rule], path
 
 

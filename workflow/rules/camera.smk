@@ -94,7 +94,7 @@ rule camera_rollout:
     log:
         f"logs/rollouts/{CAM_METHOD}/{{angle}}.log",
     benchmark:
-        f"benchmarks/rollouts/{CAM_METHOD}/{{angle}}.tsv"
+        "benchmarks/rollouts/cr_gpr_objective_camera/{angle}.tsv"
     threads: 1
     resources:
         mem_mb=1000,
