@@ -74,7 +74,7 @@ def smoke_run(smoke_repo):
 
 
 @pytest.mark.slow
-def test_smoke_dag_runs_end_to_end(smoke_run):
+def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     gt = smoke_run / "results" / "ground_truth"
     for angle in (85, 60, 125, 30):
         df = read_parquet(gt / f"{angle}.parquet", TRAJECTORY_COLUMNS)
@@ -114,7 +114,9 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
     assert (smoke_run / "benchmarks" / "ground_truth" / "85.tsv").exists()
     assert (smoke_run / "logs" / "ground_truth" / "85.log").exists()
     # nothing left to do after a complete run
-    res = snakemake("-d", str(smoke_run), "--configfile", str(SMOKE), "-n", "all")
+    repo = smoke_repo[0]
+    res = snakemake("-d", str(smoke_run), "--configfile", str(SMOKE), "-n", "all", "sweeps",
+                    snakefile=repo / "Snakefile")
     assert res.returncode == 0
     assert "Nothing to be done" in res.stdout + res.stderr
 
@@ -203,7 +205,7 @@ def test_editing_a_module_reruns_every_rule_that_imports_it(smoke_repo):
     text, stat = module.read_text(), module.stat()
     try:
         module.write_text(text + "\n# an edit\n")
-        res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-n", "all",
+        res = snakemake("-d", str(work), "--configfile", str(SMOKE), "-n", "all", "sweeps",
                         snakefile=repo / "Snakefile")
     finally:
         module.write_text(text)
