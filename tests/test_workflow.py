@@ -59,7 +59,8 @@ def test_smoke_dag_runs_end_to_end(smoke_run):
     tables = res / "tables"
     for name, cols in {
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
-        "table4_ablation.csv": [], "baselines.csv": [], "uq_coverage.csv": ["angle", "theta_coverage"],
+        "table4_ablation.csv": [], "baselines.csv": [],
+        "uq_coverage.csv": ["method", "theta0_deg", "level", "theta_coverage", "expected_coverage"],
         "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
                                       "verdict"],

@@ -1,5 +1,6 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_samples
 
-run_rule(snakemake, uq.samples_rule, cfg=snakemake.config, models=list(snakemake.input.models),
-         samples=list(snakemake.output.samples), diagnostics=snakemake.output.diagnostics)
+p = snakemake.params
+run_rule(snakemake, uq_samples, model_npz=snakemake.input.model, uq=p.uq, seed=p.seed,
+         out=snakemake.output.samples, diagnostics=snakemake.output.diagnostics)

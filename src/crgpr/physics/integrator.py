@@ -38,11 +38,14 @@ MAX_COORD = 1.0e6  # [m] or [rad]
 class SimulationDiverged(RuntimeError):
     """Raised when the state leaves the physical range; carries where and when."""
 
-    def __init__(self, message: str, step: int, t: float, node: int):
+    def __init__(self, message: str, step: int, t: float, node: int, members: np.ndarray | None = None):
         super().__init__(message)
         self.step = step
         self.t = t
         self.node = node
+        # batched runs (leading axes on the state): indices of the batch members that left the
+        # physical range, (k, n_batch_axes); None for an unbatched run
+        self.members = members
 
 
 @dataclass
@@ -226,16 +229,21 @@ def run_hamiltonian(
     two integrators agree to round-off. Returns an ``Integration`` whose ``v`` holds the
     MOMENTA p per length; ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid
     over each damping half-step; needs ``wds``).
-    Raises SimulationDiverged with the time and node of the first non-finite or runaway state.
+    Batches: q0, p0 may carry leading axes (..., n, 3) when ``force`` and ``velocity`` do
+    (e.g. a LearnedRod of posterior samples); every member is integrated independently and
+    ``dissipated`` is per member (n_rec, ...).
+    Raises SimulationDiverged with the time and node of the first non-finite or runaway state
+    (for a batch also ``members``: the batch indices that left the physical range).
     """
-    n = q0.shape[0]
+    n = q0.shape[-2]
+    batch = q0.shape[:-2]
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
     wds = np.ones(n) if wds is None else np.asarray(wds, dtype=float)
     n_rec = n_steps // every + 1
-    out_q = np.zeros((n_rec, n, 3))
+    out_q = np.zeros((n_rec, *q.shape))
     out_p = np.zeros_like(out_q)
-    out_d = np.zeros(n_rec)
+    out_d = np.zeros((n_rec, *batch))
     out_q[0], out_p[0] = q, p
     h = 0.5 * dt
     zh = zeta * h
@@ -253,10 +261,10 @@ def run_hamiltonian(
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
         p1 = p - fac * v0 * free
         v1 = velocity(p1)
-        return p1, 0.5 * zh * float((wds[:, None] * (v0 * v0 + v1 * v1) * free).sum())
+        return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     f = force(q)
-    diss = 0.0
+    diss = np.zeros(batch)
     for k in range(1, n_steps + 1):
         p, e1 = damp(p)
         p = p + h * f * free
@@ -270,10 +278,15 @@ def run_hamiltonian(
             v = velocity(p)
             if not (np.all(np.isfinite(v)) and np.all(np.isfinite(q)) and np.all(np.abs(v) < MAX_SPEED)
                     and np.all(np.abs(q) < MAX_COORD)):
-                node = _locate_failure(np.where(np.abs(q) < MAX_COORD, q, np.nan), v)
+                qb = np.where(np.abs(q) < MAX_COORD, q, np.nan)
+                node = _locate_failure(qb.reshape(-1, 3), v.reshape(-1, 3)) % n
+                members = None
+                if batch:
+                    ok = np.isfinite(qb) & np.isfinite(v) & (np.abs(v) < MAX_SPEED)
+                    members = np.argwhere(~ok.all(axis=(-2, -1)))
                 raise SimulationDiverged(
                     f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: "
-                    f"state non-finite or speed > {MAX_SPEED:g}.", k, k * dt, node)
+                    f"state non-finite or speed > {MAX_SPEED:g}.", k, k * dt, node, members)
             out_q[r], out_p[r], out_d[r] = q, p, diss
     t = np.arange(n_rec) * dt * every
     return Integration(t, out_q, out_p, out_d)
