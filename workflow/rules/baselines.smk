@@ -28,7 +28,7 @@ rule pinn_train:
     threads: 1  # torch on one thread: two threads on a shared 2-core box run 10x slower
     resources:
         mem_mb=3000,
-        runtime=15,
+        runtime=10,
     conda:
         ENV
     script:
@@ -78,8 +78,8 @@ rule blackbox_train:
         "benchmarks/baselines/blackbox_train.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=15,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:
@@ -101,8 +101,8 @@ rule blackbox_rollout:
         "benchmarks/baselines/blackbox_rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=15,
+        mem_mb=500,
+        runtime=10,
     conda:
         ENV
     script:

@@ -18,7 +18,7 @@ rule discovery_data:
         "benchmarks/discovery/data_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV
@@ -42,8 +42,8 @@ rule discovery_run:
         "benchmarks/discovery/run_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

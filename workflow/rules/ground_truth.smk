@@ -15,7 +15,7 @@ rule ground_truth:
         "benchmarks/ground_truth/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV

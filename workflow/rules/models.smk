@@ -23,8 +23,8 @@ rule gradient_model:
         "benchmarks/models/{prefilter}/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=4000,
-        runtime=15,
+        mem_mb=3250,
+        runtime=5,
     conda:
         ENV
     script:
@@ -48,7 +48,7 @@ rule table2:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:

@@ -19,8 +19,8 @@ rule prefilter:
         "benchmarks/prefilter/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

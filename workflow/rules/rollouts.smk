@@ -21,8 +21,8 @@ rule rollout:
         "benchmarks/rollouts/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

@@ -41,8 +41,8 @@ rule uq_samples:
         "benchmarks/uq/{method}/samples/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=6000,
-        runtime=20,
+        mem_mb=3000,
+        runtime=10,
     conda:
         ENV
     script:
@@ -70,7 +70,7 @@ rule uq_rollout:
         "benchmarks/uq/{method}/rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=2000,  # S = 64: trajectories (4001, S, N+1, 3) x 2 plus the stored table
         runtime=30,
     conda:
         ENV
@@ -100,7 +100,7 @@ rule uq_coverage:
         "benchmarks/uq/coverage.tsv"
     threads: 1
     resources:
-        mem_mb=6000,
+        mem_mb=3000,
         runtime=10,
     conda:
         ENV
@@ -128,7 +128,7 @@ rule uq_calibration:
         "benchmarks/uq/calibration.tsv"
     threads: 1
     resources:
-        mem_mb=6000,
+        mem_mb=2000,
         runtime=15,
     conda:
         ENV
