@@ -8,20 +8,6 @@ UQ_METHODS = list(UQ["methods"])
 UQ_METHOD_CFG = {m: config["rollouts"]["methods"][m] for m in UQ_METHODS}
 
 
-def _uq_models(method):
-    """Gradient-model stems (results/models/{prefilter}/{model}) of one UQ method."""
-    return [j.removesuffix(".json") for j in _model_files(RESULTS, UQ_METHOD_CFG[method])]
-
-
-def _uq_sample_files(method):
-    return [f"{RESULTS}/uq/{method}/samples/{Path(s).name}.npz" for s in _uq_models(method)]
-
-
-def _uq_model_of(wc):
-    stems = {Path(s).name: s for s in _uq_models(wc.method)}
-    return f"{stems[wc.model]}.npz"
-
-
 rule uq_samples:
     input:
         code=code_closure("uq_samples.py"),
