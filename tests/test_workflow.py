@@ -95,7 +95,8 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     tables = res / "tables"
     for name, cols in {
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
-        "table4_ablation.csv": [], "baselines.csv": [], "uq_coverage.csv": ["angle", "theta_coverage"],
+        "table4_ablation.csv": [], "baselines.csv": [],
+        "uq_coverage.csv": ["method", "theta0_deg", "level", "theta_coverage", "expected_coverage"],
         "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
         "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],

@@ -146,6 +146,13 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     if ang["train_deg"] not in ang["pinn_train_deg"]:
         raise ConfigError(f"{source}: angles.pinn_train_deg must include angles.train_deg "
                           f"({ang['train_deg']})")
+    if "uq" in cfg:
+        from crgpr.uq.settings import UQSettings
+
+        unknown = sorted(set(cfg["uq"]["methods"]) - set(cfg["rollouts"]["methods"]))
+        if unknown:
+            raise ConfigError(f"{source}: uq.methods {unknown} are not keys of rollouts.methods")
+        UQSettings.from_section(cfg["uq"])
 
 
 def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> dict[str, Any]:

@@ -37,3 +37,18 @@ ALL_TARGETS = []
 ROLLOUT_METHODS = []
 
 
+# Trajectory UQ (uq.smk, paper.smk): the gradient models and sample files of a UQ method.
+def _uq_models(method):
+    """Gradient-model stems (results/models/{prefilter}/{model}) of one UQ method."""
+    from crgpr.learning.learned import model_files
+
+    return [j.removesuffix(".json") for j in model_files(RESULTS, config["rollouts"]["methods"][method])]
+
+
+def _uq_sample_files(method):
+    return [f"{RESULTS}/uq/{method}/samples/{Path(s).name}.npz" for s in _uq_models(method)]
+
+
+def _uq_model_of(wc):
+    stems = {Path(s).name: s for s in _uq_models(wc.method)}
+    return f"{stems[wc.model]}.npz"

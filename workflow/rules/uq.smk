@@ -1,25 +1,29 @@
-# Trajectory-level UQ (issue 5; paper Sec. III "Uncertainty Quantification via RFF Sampling",
-# Sec. V "Uncertainty Quantification Results"): S joint posterior samples of every gradient GP,
-# propagated through the rollout per angle, band coverage of the ground truth, band figure.
+# Trajectory-level UQ (paper Sec. III-B "Uncertainty Quantification via RFF Sampling", Sec. V
+# "Uncertainty Quantification Results"), for every method in uq.methods: S joint posterior
+# samples of each of its gradient GPs, the sampled models through the same rollout as the mean
+# models, band coverage at several levels (uq_coverage.csv), a reliability diagram, band figures.
 
 UQ = config["uq"]
-UQ_PREFILTER = config["rollouts"]["methods"][UQ["method"]]["prefilter"]
-UQ_MODELS = list(config["gradient_models"]["models"])
+UQ_METHODS = list(UQ["methods"])
+UQ_METHOD_CFG = {m: config["rollouts"]["methods"][m] for m in UQ_METHODS}
+
 
 rule uq_samples:
     input:
         code=code_closure("uq_samples.py"),
-        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
-        meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+        model=_uq_model_of,
+        meta=lambda wc: _uq_model_of(wc).removesuffix(".npz") + ".json",
     output:
-        samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
-        diagnostics=f"{RESULTS}/uq/samples/diagnostics.json",
+        samples=f"{RESULTS}/uq/{{method}}/samples/{{model}}.npz",
+        diagnostics=f"{RESULTS}/uq/{{method}}/samples/{{model}}.json",
+    wildcard_constraints:
+        method="|".join(UQ_METHODS),
     params:
         cfg=cfg_params("seed", "uq"),
     log:
-        "logs/uq/samples.log",
+        "logs/uq/{method}/samples/{model}.log",
     benchmark:
-        "benchmarks/uq/samples.tsv"
+        "benchmarks/uq/{method}/samples/{model}.tsv"
     threads: 1
     resources:
         mem_mb=3000,
@@ -33,22 +37,24 @@ rule uq_samples:
 rule uq_rollout:
     input:
         code=code_closure("uq_rollout.py"),
-        samples=expand(f"{RESULTS}/uq/samples/{{model}}.npz", model=UQ_MODELS),
-        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+        samples=lambda wc: _uq_sample_files(wc.method),
+        models=lambda wc: [f"{s}.json" for s in _uq_models(wc.method)],
     output:
-        f"{RESULTS}/uq/{{angle}}.parquet",
+        f"{RESULTS}/uq/{{method}}/{{angle}}.parquet",
     wildcard_constraints:
+        method="|".join(UQ_METHODS),
         angle=r"-?\d+",
     params:
-        cfg=cfg_params("seed", "uq", "rod", "simulation"),
+        cfg=cfg_params("uq", "rod", "simulation"),
+        method_cfg=lambda wc: UQ_METHOD_CFG[wc.method],
     log:
-        "logs/uq/rollout/{angle}.log",
+        "logs/uq/{method}/rollout/{angle}.log",
     benchmark:
-        "benchmarks/uq/rollout/{angle}.tsv"
+        "benchmarks/uq/{method}/rollout/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
-        runtime=5,
+        mem_mb=2000,  # S = 64: trajectories (4001, S, N+1, 3) x 2 plus the stored table
+        runtime=30,
     conda:
         ENV
     script:
@@ -58,8 +64,10 @@ rule uq_rollout:
 rule uq_coverage:
     input:
         code=code_closure("uq_coverage.py"),
-        uq=expand(f"{RESULTS}/uq/{{angle}}.parquet", angle=UQ["angles_deg"]),
+        uq=expand(f"{RESULTS}/uq/{{method}}/{{angle}}.parquet", method=UQ_METHODS, angle=UQ["angles_deg"]),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
+        mean_models=expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=UQ_METHODS,
+                           angle=UQ["angles_deg"]),
     output:
         coverage=f"{RESULTS}/uq/coverage.parquet",
         table=report(
@@ -76,7 +84,7 @@ rule uq_coverage:
     threads: 1
     resources:
         mem_mb=3000,
-        runtime=5,
+        runtime=10,
     conda:
         ENV
     script:
@@ -86,8 +94,8 @@ rule uq_coverage:
 rule uq_calibration:
     input:
         code=code_closure("uq_calibration.py"),
-        models=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.npz", model=UQ_MODELS),
-        meta=expand(f"{RESULTS}/models/{UQ_PREFILTER}/{{model}}.json", model=UQ_MODELS),
+        models=sorted({f"{s}.npz" for m in UQ_METHODS for s in _uq_models(m)}),
+        meta=sorted({f"{s}.json" for m in UQ_METHODS for s in _uq_models(m)}),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
         report(
@@ -96,15 +104,15 @@ rule uq_calibration:
             category="Uncertainty (RFF)",
         ),
     params:
-        cfg=cfg_params("uq", "rod"),
+        cfg=cfg_params("rod"),
     log:
         "logs/uq/calibration.log",
     benchmark:
         "benchmarks/uq/calibration.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
-        runtime=5,
+        mem_mb=2000,
+        runtime=15,
     conda:
         ENV
     script:
@@ -114,26 +122,27 @@ rule uq_calibration:
 rule uq_figure:
     input:
         code=code_closure("uq_figure.py"),
-        uq=f"{RESULTS}/uq/{{angle}}.parquet",
+        uq=f"{RESULTS}/uq/{{method}}/{{angle}}.parquet",
         ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
-        mean_model=f"{RESULTS}/rollouts/{UQ['method']}/{{angle}}.parquet",
+        mean_model=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
     output:
         report(
-            f"{RESULTS}/figures/uq_band_{{angle}}.png",
+            f"{RESULTS}/figures/uq_band_{{method}}_{{angle}}.png",
             caption="../report/uq_band.rst",
             category="Uncertainty (RFF)",
         ),
     wildcard_constraints:
+        method="|".join(UQ_METHODS),
         angle=r"-?\d+",
     params:
         cfg=cfg_params("uq"),
     log:
-        "logs/uq/figure/{angle}.log",
+        "logs/uq/figure/{method}_{angle}.log",
     benchmark:
-        "benchmarks/uq/figure/{angle}.tsv"
+        "benchmarks/uq/figure/{method}_{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=3000,
         runtime=5,
     conda:
         ENV
@@ -141,10 +150,35 @@ rule uq_figure:
         "../scripts/uq_figure.py"
 
 
+rule uq_reliability:
+    input:
+        code=code_closure("uq_reliability.py"),
+        coverage=f"{RESULTS}/uq/coverage.parquet",
+    output:
+        report(
+            f"{RESULTS}/figures/uq_reliability.png",
+            caption="../report/uq_reliability.rst",
+            category="Uncertainty (RFF)",
+        ),
+    log:
+        "logs/uq/reliability.log",
+    benchmark:
+        "benchmarks/uq/reliability.tsv"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=2,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_reliability.py"
+
+
 ALL_TARGETS.extend(
     [
         f"{RESULTS}/tables/uq_coverage.csv",
         f"{RESULTS}/tables/uq_function_calibration.csv",
-        f"{RESULTS}/figures/uq_band_{UQ['figure_angle_deg']}.png",
+        f"{RESULTS}/figures/uq_reliability.png",
+        *expand(f"{RESULTS}/figures/uq_band_{{method}}_{UQ['figure_angle_deg']}.png", method=UQ_METHODS),
     ]
 )

@@ -1,5 +1,6 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_calibration
 
-run_rule(snakemake, uq.calibration_rule, cfg=snakemake.params.cfg, models=list(snakemake.input.models),
-         gt_paths=list(snakemake.input.ground_truth), out=snakemake.output[0])
+run_rule(snakemake, uq_calibration, models=list(snakemake.input.models),
+         ground_truth=list(snakemake.input.ground_truth), rod=snakemake.params.cfg["rod"],
+         out=snakemake.output[0])

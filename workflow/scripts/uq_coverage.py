@@ -1,6 +1,6 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_coverage
 
-run_rule(snakemake, uq.coverage_rule, cfg=snakemake.params.cfg, uq_paths=list(snakemake.input.uq),
-         gt_paths=list(snakemake.input.ground_truth), out=snakemake.output.coverage,
-         table=snakemake.output.table)
+i, o = snakemake.input, snakemake.output
+run_rule(snakemake, uq_coverage, uq_paths=list(i.uq), ground_truth=list(i.ground_truth),
+         mean_models=list(i.mean_models), uq=snakemake.params.cfg["uq"], out=o.coverage, table=o.table)

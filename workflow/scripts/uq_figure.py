@@ -1,5 +1,5 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_figure
 
-run_rule(snakemake, uq.figure_rule, cfg=snakemake.params.cfg, uq_path=snakemake.input.uq,
-         gt_path=snakemake.input.ground_truth, out=snakemake.output[0], mean_path=snakemake.input.mean_model)
+run_rule(snakemake, uq_figure, uq_path=snakemake.input.uq, ground_truth=snakemake.input.ground_truth,
+         mean_model=snakemake.input.mean_model, uq=snakemake.params.cfg["uq"], out=snakemake.output[0])

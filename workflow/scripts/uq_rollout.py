@@ -1,5 +1,7 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_rollout
 
-run_rule(snakemake, uq.rollout_rule, cfg=snakemake.params.cfg, angle=int(snakemake.wildcards.angle),
-         samples=list(snakemake.input.samples), models=list(snakemake.input.models), out=snakemake.output[0])
+p = snakemake.params
+run_rule(snakemake, uq_rollout, samples=list(snakemake.input.samples), models=list(snakemake.input.models),
+         method=snakemake.wildcards.method, method_cfg=p.method_cfg, angle=int(snakemake.wildcards.angle),
+         rod=p.cfg["rod"], simulation=p.cfg["simulation"], uq=p.cfg["uq"], out=snakemake.output[0])

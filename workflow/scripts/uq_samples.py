@@ -1,5 +1,6 @@
 from crgpr.commands.smk import run_rule
-from crgpr.uq import ensemble as uq
+from crgpr.commands.uq import uq_samples
 
-run_rule(snakemake, uq.samples_rule, cfg=snakemake.params.cfg, models=list(snakemake.input.models),
-         samples=list(snakemake.output.samples), diagnostics=snakemake.output.diagnostics)
+cfg = snakemake.params.cfg
+run_rule(snakemake, uq_samples, model_npz=snakemake.input.model, uq=cfg["uq"], seed=cfg["seed"],
+         out=snakemake.output.samples, diagnostics=snakemake.output.diagnostics)

@@ -143,10 +143,17 @@ class LearnedRod:
         return np.concatenate([-self.internal(q), self.velocity(p)], axis=-1)
 
 
-def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout") -> Trajectory:
-    """Integrate the learned dPHS from the straight rod at rest (same scheme and dt as ground truth)."""
+def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout",
+            n_batch: int | None = None) -> Trajectory:
+    """Integrate the learned dPHS from the straight rod at rest (same scheme and dt as ground truth).
+
+    ``n_batch``: integrate that many copies at once (a model whose components carry a leading
+    batch axis, e.g. posterior samples); q and p are then (n_t, n_batch, N+1, 3).
+    """
     P = model.params
     q0 = straight_rod(math.radians(theta0_deg), P)
+    if n_batch is not None:
+        q0 = np.repeat(q0[None], n_batch, axis=0)
     out = run_hamiltonian(q0, np.zeros_like(q0), model.force, model.velocity, free_mask(P), P.zeta,
                           settings.dt, settings.n_steps, settings.record_every, model.wds, what,
                           velocity_slope=model.velocity_slope)

@@ -57,12 +57,15 @@ class SimulationDiverged(RuntimeError):
     """Raised when the state leaves the physical range; carries where and when."""
 
     def __init__(self, message: str, step: int, t: float, node: int,
-                 partial: Integration | None = None):
+                 partial: Integration | None = None, members: np.ndarray | None = None):
         super().__init__(message)
         self.step = step
         self.t = t
         self.node = node
         self.partial = partial  # the records up to the last good one
+        # batched runs (leading axes on the state): indices of the batch members that left the
+        # physical range, (k, n_batch_axes); None for an unbatched run
+        self.members = members
 
 
 @dataclass
@@ -209,10 +212,11 @@ def diverged_nodes(q: np.ndarray, v: np.ndarray, base: np.ndarray, reach: float)
 def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
               partial: Integration | None) -> SimulationDiverged:
     node = int(np.nonzero(bad.reshape(-1, bad.shape[-1]))[1][0])
+    members = np.argwhere(bad.any(axis=-1)) if bad.ndim > 1 else None
     return SimulationDiverged(
         f"{what} diverged at t = {k * dt:.6g} s (step {k}), first bad node {node}: state "
         f"non-finite, speed >= {MAX_SPEED:g} or farther than {REACH:g} rod lengths from the "
-        f"base.{hint}", k, k * dt, node, partial)
+        f"base.{hint}", k, k * dt, node, partial, members)
 
 
 def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
@@ -263,7 +267,10 @@ def run_verlet(
     dt/2, energy removed); ``kick_scale`` multiplies the kicks (default ``free``; inverse
     masses for a velocity state); ``free`` masks the clamped entries. ``length``: rod length
     for the reach bound (default: that of q0). Returns an ``Integration`` whose ``v`` holds
-    the state p. Raises SimulationDiverged (divergence policy of the module docstring).
+    the state p. Batches: q0, p0 may carry leading axes (..., N+1, 3) when ``force`` and
+    ``velocity`` do; every member is integrated independently, ``damp`` returns the energy
+    removed per member and ``dissipated`` is (n_rec, ...). Raises SimulationDiverged
+    (divergence policy of the module docstring; for a batch ``members`` names the bad ones).
     """
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
@@ -273,12 +280,12 @@ def run_verlet(
     n_rec = n_steps // every + 1
     out_q = np.zeros((n_rec, *q.shape))
     out_p = np.zeros_like(out_q)
-    out_d = np.zeros(n_rec)
+    out_d = np.zeros((n_rec, *q.shape[:-2]))
     out_q[0], out_p[0] = q, p
     t = np.arange(n_rec) * dt * every
     h = 0.5 * dt
     f = force(q, p)
-    diss = 0.0
+    diss = np.zeros(q.shape[:-2])
     for k in range(1, n_steps + 1):
         if damp is not None:
             p, e1 = damp(p)
@@ -361,8 +368,9 @@ def run_hamiltonian(
     H_p = p / (rho A) this is ``run_rod``'s exact exponential, so with the analytic H_z the
     two agree to round-off. ``v`` of the result holds the MOMENTA p per length;
     ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid over each damping
-    half-step; needs ``wds``). States may carry leading batch axes (..., N+1, 3) (several
-    initial states integrated at once); ``dissipated`` is then summed over the batch.
+    half-step; needs ``wds``). States may carry leading batch axes (..., N+1, 3) when
+    ``force`` and ``velocity`` do (several initial states, or a LearnedRod of posterior
+    samples); ``dissipated`` is then per member (n_rec, ...).
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -381,7 +389,7 @@ def run_hamiltonian(
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
         p1 = p - fac * v0 * free
         v1 = velocity(p1)
-        return p1, 0.5 * zh * float((wds[:, None] * (v0 * v0 + v1 * v1) * free).sum())
+        return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=damp, length=length, what=what)

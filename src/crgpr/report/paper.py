@@ -6,7 +6,7 @@ A reference such as ``accuracy:cr_gpr:mean:rmse_theta`` names one of our numbers
     accuracy:<method>:<angle|mean>:<column>   results/metrics/accuracy.parquet
     hyper:<model>:<column>                    results/tables/table2_hyperparameters.csv
     timing:<stage>                            results/metrics/timing.parquet (minutes)
-    uq:<angle|mean>:<column>                  results/tables/uq_coverage.csv (column angle)
+    uq:<method>:<S>:<level>:<angle|mean>:<column>   results/tables/uq_coverage.csv
 
 Claims are small expressions over references, e.g.
 ``ratio(accuracy:blackbox_gp:mean:rmse_theta, accuracy:cr_gpr:mean:rmse_theta) > 20``,
@@ -81,8 +81,13 @@ def resolve(ref: str, src: Sources) -> float:
             row = src.timing[src.timing["stage"] == stage]
             return float(row["minutes"].iloc[0]) if not row.empty else math.nan
         if kind == "uq" and src.uq is not None:
-            key, col = parts
-            return _mean_or_angle(src.uq, "angle", key, col)
+            method, n_samples, level, key, col = parts
+            u = src.uq
+            df = u[(u["method"] == method) & (u["n_samples"] == int(n_samples))
+                   & (u["level"] == float(level)) & u["theta0_deg"].notna()]
+            if df.empty:
+                return math.nan
+            return _mean_or_angle(df, "theta0_deg", key, col)
         if kind == "noise" and src.noise is not None:
             noise_mm, prefilter, features, col = parts
             d = src.noise

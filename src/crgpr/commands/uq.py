@@ -1,0 +1,168 @@
+"""Rule functions of the trajectory-UQ stage (workflow/rules/uq.smk); rule name = script name =
+function name. Each takes the config values its rule passes as ``params``.
+
+uq_samples      S posterior samples of one gradient GP of one method
+uq_rollout      the S sampled models of one method through the rollout at one angle
+uq_coverage     coverage at every level, method and angle (+ the paper's S = 10 rows)
+uq_calibration  function-level calibration of the gradient GPs on the test trajectories
+uq_figure       rod shapes with the band (one method, one angle)
+uq_reliability  reliability diagram from the coverage table
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_from_frame
+from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, sample_arrays, summary_rows, truth_arrays
+from crgpr.uq.rollout import UQ_COLUMNS, rollout_samples, uq_frame
+from crgpr.uq.samples import load_samples, sample_model
+from crgpr.uq.settings import UQSettings
+
+log = logging.getLogger(__name__)
+
+
+def _sim(simulation: Mapping[str, Any]) -> SimSettings:
+    return SimSettings(dt=float(simulation["dt_s"]), t_end=float(simulation["t_end_s"]),
+                       record_every=int(simulation["record_every"]))
+
+
+def theta_center(model_jsons: Sequence[str | Path], features: str) -> float | None:
+    """The angle window of the paper features (q_x and dH_dtheta must agree); None otherwise."""
+    if features != "paper":
+        return None
+    metas = {Path(m).stem: json.loads(Path(m).read_text()) for m in model_jsons}
+    centers = {metas[m].get("theta_center") for m in ("q_x", "q_y", "dH_dtheta") if m in metas}
+    if len(centers) != 1:
+        raise ValueError(f"q_x, q_y, dH_dtheta have different theta windows {centers}")
+    return centers.pop()
+
+
+def uq_samples(model_npz: str, uq: Mapping[str, Any], seed: int, out: str, diagnostics: str) -> None:
+    """Rule ``uq_samples``: S samples of the gradient model ``model_npz`` (stem.npz + .json)."""
+    settings = UQSettings.from_section(dict(uq))
+    stem = Path(model_npz).with_suffix("")
+    sample_model(stem, stem.name, settings, int(seed), out, diagnostics)
+
+
+def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, method_cfg: Mapping[str, str],
+               angle: int, rod: Mapping[str, Any], simulation: Mapping[str, Any], uq: Mapping[str, Any],
+               out: str) -> None:
+    """Rule ``uq_rollout``: the S sampled models of ``method`` at ``angle`` (one batch); writes
+    every ``uq.store_every``-th record of every sample (``UQ_COLUMNS``, float32 states)."""
+    settings = UQSettings.from_section(dict(uq))
+    params, sim = RodParams.from_dict(dict(rod)), _sim(simulation)
+    smp = load_samples({Path(p).stem: p for p in samples})
+    center = theta_center(models, method_cfg["features"])
+    t0 = time.perf_counter()
+    t, q, p, keep, diverged = rollout_samples(smp, method_cfg["features"], params, center, float(angle), sim)
+    secs = time.perf_counter() - t0
+    log.info("%s at %d deg: %d samples integrated in %.1f s (%d diverged)", method, angle, len(keep), secs,
+             len(diverged))
+    k = int(uq["store_every"])
+    df = uq_frame(float(angle), t[::k], q[:, ::k], p[:, ::k], keep, params.ds)
+    df = df.astype({c: np.float32 for c in ("x", "y", "theta", "p_x", "p_y", "p_theta")})
+    meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle, "features": method_cfg["features"],
+            "n_samples": settings.n_samples, "n_diverged": len(diverged), "diverged": diverged,
+            "seconds_rollout": secs, "store_every": k, "settings": settings.to_dict(),
+            "rod": params.to_dict(), "simulation": sim.to_dict()}
+    write_parquet(df, out, meta)
+
+
+def _method_angle(path: str) -> tuple[str, int]:
+    p = Path(path)
+    return p.parent.name, int(p.stem)
+
+
+def uq_coverage(uq_paths: Sequence[str], ground_truth: Sequence[str], mean_models: Sequence[str],
+                uq: Mapping[str, Any], out: str, table: str) -> None:
+    """Rule ``uq_coverage``: rows per (method, angle, S, level) plus the mean over the angles.
+
+    ``mean_models``: results/rollouts/{method}/{angle}.parquet of the same methods and angles."""
+    settings = UQSettings.from_section(dict(uq))
+    gts = {int(Path(p).stem): p for p in ground_truth}
+    means = {_method_angle(p): p for p in mean_models}
+    cols = ("x", "y", "theta")
+    rows = []
+    for path in uq_paths:
+        method, angle = _method_angle(path)
+        df = read_parquet(path, required=UQ_COLUMNS)
+        arr = sample_arrays(df, cols)
+        t = np.sort(df["t"].unique())
+        g = truth_arrays(read_parquet(gts[angle], required=TRAJECTORY_COLUMNS), t, cols)
+        mm = None
+        if (method, angle) in means:
+            mm = truth_arrays(read_parquet(means[(method, angle)], required=TRAJECTORY_COLUMNS), t, cols)
+        n_div = int(read_metadata(path).get("n_diverged", 0))
+        sizes = sorted({settings.paper_n_samples, arr.shape[0]})
+        for r in coverage_rows(arr, g, settings.levels, sizes, mm):
+            rows.append({"method": method, "theta0_deg": float(angle), "n_diverged": n_div, **r})
+    df = pd.DataFrame(rows)[list(COVERAGE_COLUMNS)]
+    df = pd.concat([df, summary_rows(df)], ignore_index=True)
+    meta = {"kind": "uq_coverage", "settings": settings.to_dict(),
+            "definition": "fraction of ground-truth samples inside the central band of the given level "
+                          "(percentiles over the first n_samples sampled trajectories); theta over t > 0 "
+                          "and nodes 1..N; tip: x and y both inside; expected_coverage: the value a "
+                          "calibrated model reaches with n_samples; rows with theta0_deg empty: mean "
+                          "over the angles"}
+    write_parquet(df, out, meta)
+    write_csv(df.round(5), table)
+    log.info("coverage (means over angles):\n%s",
+             df[df["theta0_deg"].isna()][["method", "n_samples", "level", "theta_coverage",
+                                           "expected_coverage", "mc_se"]].to_string())
+
+
+def uq_calibration(models: Sequence[str], ground_truth: Sequence[str], rod: Mapping[str, Any],
+                   out: str) -> None:
+    """Rule ``uq_calibration``: function-level calibration of the models ``models`` (.npz of
+    results/models/{prefilter}/) at the ground-truth states of the test angles."""
+    from crgpr.uq.calibration import function_calibration
+
+    params = RodParams.from_dict(dict(rod))
+    by_prefilter: dict[str, dict[str, str]] = {}
+    for m in models:
+        p = Path(m)
+        by_prefilter.setdefault(p.parent.name, {})[p.stem] = str(p.with_suffix(""))
+    trajs = {}
+    for path in ground_truth:
+        tr = trajectory_from_frame(read_parquet(path, required=TRAJECTORY_COLUMNS), params)
+        trajs[int(Path(path).stem)] = (tr.q, tr.p)
+    frames = []
+    for prefilter, stems in sorted(by_prefilter.items()):
+        jsons = [str(Path(s).with_suffix(".json")) for s in stems.values()]
+        center = theta_center(jsons, "paper") if "q_x" in stems else None
+        df = function_calibration(stems, trajs, params, center)
+        df.insert(0, "prefilter", prefilter)
+        frames.append(df)
+    write_csv(pd.concat(frames, ignore_index=True).round(6), out)
+
+
+def uq_figure(uq_path: str, ground_truth: str, mean_model: str, uq: Mapping[str, Any], out: str) -> None:
+    """Rule ``uq_figure``: rod shapes with the ``uq.figure_level`` band for one method and angle."""
+    from crgpr.report.uq import band_figure
+
+    settings = UQSettings.from_section(dict(uq))
+    method, angle = _method_angle(uq_path)
+    df = read_parquet(uq_path, required=UQ_COLUMNS)
+    arr = sample_arrays(df, ("x", "y"))
+    t = np.sort(df["t"].unique())
+    g = truth_arrays(read_parquet(ground_truth, required=TRAJECTORY_COLUMNS), t, ("x", "y"))
+    mm = truth_arrays(read_parquet(mean_model, required=TRAJECTORY_COLUMNS), t, ("x", "y"))
+    band_figure(arr, t, g, settings.figure_level, settings.figure_time_fractions, out, method, angle, mm)
+
+
+def uq_reliability(coverage: str, out: str) -> None:
+    """Rule ``uq_reliability``: the reliability diagram of ``results/uq/coverage.parquet``."""
+    from crgpr.report.uq import reliability_diagram
+
+    reliability_diagram(read_parquet(coverage, required=COVERAGE_COLUMNS), out)

@@ -1,0 +1,309 @@
+"""Posterior function samples of a method's gradient GPs, stored for the sampled rollouts
+(paper Sec. III-B "Uncertainty Quantification via RFF Sampling").
+
+For every SE / ARD-SE gradient GP of a method (``cr_gpr``: q_x, q_y, dH/dtheta; ``cr_gpr_objective``:
+obj_n1, obj_n2, obj_m; both: dH/dp_x, dH/dp_y, dH/dp_theta) S joint posterior function samples
+are drawn by ``crgpr.gp.sampling`` (sparse pathwise conditioning on the rollout's own DTC
+inducing inputs, centred exactly on the rollout's mean model, plus an RFF sample of the prior
+residual), basis coefficients included. The 1D momentum GPs are sampled exactly and tabulated
+like their means (``TabulatedSamples``). Every sample set is a component of
+``crgpr.learning.learned.LearnedRod`` with a leading sample axis: x (S, ..., d) -> (S, ...).
+The sampling-approximation errors are measured against the exact GP posterior (diagnostics).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from crgpr.gp import GP
+from crgpr.gp.sampling import (
+    CompressedSamples,
+    exact_posterior,
+    inducing_indices,
+    pathwise_samples,
+    se_kernel,
+    sparse_posterior,
+)
+from crgpr.gp.sampling import compress as compress_samples
+from crgpr.io import load_npz, write_json, write_npz
+from crgpr.learning.gradient_models import ALL_MODELS
+from crgpr.uq.settings import UQSettings
+
+log = logging.getLogger(__name__)
+
+@dataclass
+class TabulatedSamples:
+    """S samples of a 1D GP tabulated on a grid (linear interpolation, constant beyond the
+    ends), the same representation the CR-GPR rollout uses for the momentum models' mean
+    (gradient_models.py): ``grid`` (G,), ``values`` (S, G) in output units."""
+
+    grid: np.ndarray
+    values: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return self.values.shape[0]
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"kind": np.array("tabulated"), "grid": self.grid, "values": self.values}
+
+    def __post_init__(self) -> None:
+        self.grid = np.ascontiguousarray(self.grid, dtype=float)
+        self.values = np.ascontiguousarray(self.values, dtype=float)
+        dg = np.diff(self.grid)
+        if not np.allclose(dg, dg[0], rtol=1e-9, atol=0.0) or dg[0] <= 0:
+            raise ValueError("TabulatedSamples: the grid must be uniform and increasing")
+
+    def _eval(self, x: np.ndarray, slope: bool) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        x = x[..., 0] if (x.ndim >= 3 and x.shape[-1] == 1) else x
+        if x.shape[0] != self.n_samples:
+            raise ValueError(f"expected inputs with S = {self.n_samples} rows first, got {x.shape}")
+        flat = np.ascontiguousarray(x.reshape(self.n_samples, -1))
+        out = np.empty_like(flat)
+        _interp_uniform(flat, self.grid[0], self.grid[1] - self.grid[0], self.values, slope, out)
+        return out.reshape(x.shape)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Sample s at x[s]: x (S, ...) or (S, ..., 1) -> (S, ...); 0 (the prior mean) outside
+        the grid, as the CR-GPR rollout's tables (crgpr.gp.Table1D)."""
+        return self._eval(x, False)
+
+    def slope(self, x: np.ndarray) -> np.ndarray:
+        """Slope of each sample's interpolant at x[s] (0 outside), for the damping flow."""
+        return self._eval(x, True)
+
+
+@njit(cache=True)
+def _interp_uniform(x, g0, dg, values, slope, out):
+    S, m = x.shape
+    G = values.shape[1]
+    for s in range(S):
+        for i in range(m):
+            r = (x[s, i] - g0) / dg
+            if not (r >= 0.0 and r <= G - 1):
+                out[s, i] = 0.0
+                continue
+            j = min(int(r), G - 2)
+            f = r - j
+            if slope:
+                out[s, i] = (values[s, j + 1] - values[s, j]) / dg
+            else:
+                out[s, i] = values[s, j] + f * (values[s, j + 1] - values[s, j])
+
+
+SampleSet = CompressedSamples | TabulatedSamples
+
+
+def samples_from_arrays(arr: dict[str, np.ndarray]) -> SampleSet:
+    if "kind" in arr and str(arr["kind"]) == "tabulated":
+        return TabulatedSamples(arr["grid"], arr["values"])
+    return CompressedSamples.from_arrays(arr)
+
+
+def uq_seed(seed: int, model: str) -> int:
+    """Seed of the samples of one gradient model, from the global ``seed`` and the model's name
+    (the same draws for a model shared by two methods, e.g. the momentum GPs)."""
+    return int(np.random.SeedSequence([int(seed), 5, ALL_MODELS.index(model)]).generate_state(1)[0])
+
+
+def select_samples(smp: SampleSet, keep: np.ndarray) -> SampleSet:
+    """The sample set restricted to the samples ``keep`` (indices along the sample axis)."""
+    keep = np.asarray(keep, dtype=int)
+    if isinstance(smp, TabulatedSamples):
+        return TabulatedSamples(smp.grid, smp.values[keep])
+    arr = smp.to_arrays()
+    for k in ("omega", "phase", "w", "a", "beta"):
+        arr[k] = arr[k][keep]
+    return CompressedSamples.from_arrays(arr)
+
+
+# ----------------------------------------------------------------------------------------
+# stage 1: samples of every gradient GP
+
+
+def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np.ndarray | None]:
+    """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GP without the
+    O(n^3) factorisation ``GP.load`` performs; also return the standardised inducing inputs
+    ``dtc_Z`` of the rollout's DTC mean and the 1D table grid ``table_x`` (gradient_models.py)
+    when the file has them."""
+    stem = Path(stem)
+    npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
+    for p in (npz, js):
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: gradient model file missing (run the gradient_models rule)")
+    meta = json.loads(js.read_text())
+    if meta.get("kernel") != "se":
+        raise ValueError(f"{js}: kernel {meta.get('kernel')!r}; RFF sampling needs SE / ARD-SE")
+    with np.load(npz, allow_pickle=False) as a:
+        arr = {k: a[k] for k in a.files}
+    X = np.asarray(arr["X"], dtype=float)
+    X = X[:, None] if X.ndim == 1 else X
+    Y = np.asarray(arr["Y"], dtype=float)
+    if Y.ndim == 2 and Y.shape[1] != 1:
+        raise ValueError(f"{npz}: {Y.shape[1]} output columns; expected a single-output GP")
+    y_mean = float(np.ravel(arr["y_mean"])[0])
+    y_scale = float(np.ravel(arr["y_scale"])[0])
+    x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
+    spec = GP.from_standardised(
+        (X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
+        np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)), float(meta["sigma_n_std"]),
+        str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+    Z = arr.get("dtc_Z")
+    Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
+    grid = arr.get("table_x")
+    spec.rollout_arrays = {k: arr[k] for k in ("dtc_Z", "dtc_w", "dtc_beta") if k in arr}
+    return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
+
+
+def _subset(spec: GP, idx: np.ndarray) -> GP:
+    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+
+
+def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
+                       grid: np.ndarray | None = None
+                       ) -> tuple[CompressedSamples | TabulatedSamples, dict[str, Any]]:
+    """S compressed joint samples of one GP plus diagnostics.
+
+    Inducing inputs: ``Z`` (standardised) if given, i.e. the rollout's own DTC inducing set, so
+    that the samples are centred on exactly the mean model the CR-GPR rollout integrates; else
+    M = uq.inducing by pivoted Cholesky. Diagnostics: the sampler's mean and sd against the
+    exact GP posterior at ``check_points`` training inputs; for n > exact_check_max_n both are
+    conditioned on a random subset of exact_check_max_n points (as gradient_models.py does).
+
+    1D models (the momentum GPs, n ~ 1000) with a ``grid``: exact pathwise samples tabulated on
+    the grid (the rollout's own representation of their mean); the diagnostics then measure
+    the interpolation error of the tabulated samples against the exact samples.
+    """
+    if spec.dim == 1 and grid is not None:
+        return _tabulated_samples(spec, settings, seed, grid)
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    n = spec.Xs.shape[0]
+    if Z is None:
+        idx = inducing_indices(spec, settings.inducing, seed)
+        Z, z_src = spec.Xs[idx], "farthest points (crgpr.gp.select_inducing)"
+    else:
+        idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
+    info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
+                            "inducing": int(Z.shape[0]), "inducing_source": z_src,
+                            "sampler": settings.sampler, "n_features": settings.n_features,
+                            "n_samples": settings.n_samples, "seed": seed}
+    ra = getattr(spec, "rollout_arrays", {})
+    if settings.sampler == "sparse_pathwise":
+        sp = sparse_posterior(spec, Z)
+        comp = sp.sample(settings.n_samples, settings.n_features, rng)
+        if "dtc_w" in ra:
+            # centre the samples exactly on the rollout's mean model: its DTC coefficients plus
+            # the zero-mean posterior deviations (the two DTC solutions agree near the data but
+            # differ far from it, where K_ZZ's ill-conditioned directions and the basis
+            # extrapolation dominate; see diagnostics centre_vs_rollout_*)
+            beta_bar, a_bar = sp.mean_coefficients()
+            comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"])
+            comp.beta = comp.beta - beta_bar + np.ravel(ra["dtc_beta"])
+            comp.__post_init__()
+            info["centred_on"] = "the rollout's DTC mean (dtc_w, dtc_beta)"
+    else:
+        if idx is None:  # compression needs training-point indices: match Z to rows of X
+            idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
+        smp = pathwise_samples(exact_posterior(spec), settings.n_samples, settings.n_features, rng)
+        comp = compress_samples(smp, idx)
+    info["sampling_s"] = time.perf_counter() - t0
+    if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
+        # our DTC posterior mean against the mean model the CR-GPR rollout integrates
+        xc = spec.Xs[np.random.default_rng(seed + 2).choice(n, size=min(settings.check_points, n),
+                                                             replace=False)]
+        m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.ell) @ np.ravel(ra["dtc_w"])
+                                + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
+        m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
+        info["sparse_mean_vs_rollout_mean_max_over_sd"] = float(
+            np.max(np.abs(m_ours - m_roll) / np.sqrt(v_ours)))
+        info["sparse_mean_vs_rollout_mean_max_abs"] = float(np.max(np.abs(m_ours - m_roll)))
+    # diagnostics against the exact posterior
+    crng = np.random.default_rng(seed + 1)
+    limit = settings.exact_check_max_n
+    if limit > 0:
+        sub = np.arange(n) if n <= limit else np.sort(crng.choice(n, size=limit, replace=False))
+        cspec = spec if n <= limit else _subset(spec, sub)
+        info["exact_check"] = ("all n points" if n <= limit else
+                               f"exact and sparse both conditioned on a random subset of {limit} points")
+        post = exact_posterior(cspec)
+        chk = crng.choice(cspec.Xs.shape[0], size=min(settings.check_points, cspec.Xs.shape[0]),
+                          replace=False)
+        xr = cspec.Xs[chk] * spec.x_std + spec.x_mean
+        m_ex, v_ex = post.mean_var(xr)
+        sd_ex = np.sqrt(np.maximum(v_ex, 1e-300))
+        if settings.sampler == "sparse_pathwise":
+            m_ap, v_ap = sparse_posterior(cspec, Z).mean_var(xr)
+            sd_ap = np.sqrt(np.maximum(v_ap, 0.0))
+            info["mean_err_max_over_sd"] = float(np.max(np.abs(m_ap - m_ex) / sd_ex))
+            info["mean_err_rms_over_sd"] = float(np.sqrt(np.mean(((m_ap - m_ex) / sd_ex) ** 2)))
+            info["sd_ratio_median"] = float(np.median(sd_ap / sd_ex))
+            info["sd_ratio_min"] = float(np.min(sd_ap / sd_ex))
+            info["sd_ratio_max"] = float(np.max(sd_ap / sd_ex))
+        else:
+            exact_f = smp(xr)
+            approx_f = comp(np.broadcast_to(xr, (comp.n_samples, *xr.shape)))
+            err = (approx_f - exact_f) / sd_ex
+            info["compression_err_max_over_sd"] = float(np.abs(err).max())
+            info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
+        info["exact_sd_median"] = float(np.median(sd_ex))
+        info["sigma_n"] = spec.sigma_n * spec.out_scale
+    else:
+        info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
+    info["seconds"] = time.perf_counter() - t0
+    log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
+    return comp, info
+
+
+def _tabulated_samples(spec: GP, settings: UQSettings, seed: int, grid: np.ndarray
+                       ) -> tuple[TabulatedSamples, dict[str, Any]]:
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    post = exact_posterior(spec)
+    smp = pathwise_samples(post, settings.n_samples, settings.n_features, rng)
+    grid = np.asarray(grid, dtype=float).ravel()
+    tab = TabulatedSamples(grid, np.hstack([smp(grid[i:i + 2048, None]) for i in range(0, grid.size, 2048)]))
+    crng = np.random.default_rng(seed + 1)
+    xc = crng.uniform(grid[0], grid[-1], settings.check_points)[:, None]
+    _, var = post.mean_var(xc)
+    err = (tab(np.broadcast_to(xc, (tab.n_samples, *xc.shape))) - smp(xc)) / np.sqrt(np.maximum(var, 1e-300))
+    info = {"model": spec.name, "n": int(spec.Xs.shape[0]), "dim": 1, "basis": spec.basis,
+            "sampler": "exact_pathwise, tabulated", "grid_points": int(grid.size),
+            "n_features": settings.n_features, "n_samples": settings.n_samples, "seed": seed,
+            "exact_check": "interpolation error of the tabulated samples vs the exact samples",
+            "interp_err_max_over_sd": float(np.abs(err).max()),
+            "interp_err_rms_over_sd": float(np.sqrt(np.mean(err**2))),
+            "exact_sd_median": float(np.median(np.sqrt(var))), "sigma_n": spec.sigma_n * spec.out_scale,
+            "seconds": time.perf_counter() - t0}
+    log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
+    return tab, info
+
+
+def sample_model(stem: str | Path, name: str, settings: UQSettings, seed: int, out_npz: str | Path,
+                 diagnostics_out: str | Path) -> SampleSet:
+    """S samples of one saved gradient model (``stem``.npz/.json) -> ``out_npz`` plus its
+    diagnostics JSON; the seed is ``uq_seed(seed, name)``."""
+    spec, Z, grid = load_gp_spec(stem, name)
+    comp, info = draw_model_samples(spec, settings, uq_seed(seed, name), Z, grid)
+    write_npz(out_npz, **comp.to_arrays())
+    write_json({"settings": settings.to_dict(), "model": info}, diagnostics_out)
+    return comp
+
+
+def load_samples(paths: dict[str, str | Path]) -> dict[str, SampleSet]:
+    """Sample sets by model name from their .npz files; all must have the same S."""
+    out = {name: samples_from_arrays(load_npz(p)) for name, p in paths.items()}
+    sizes = {m: s.n_samples for m, s in out.items()}
+    if len(set(sizes.values())) > 1:
+        raise ValueError(f"UQ samples have different S per model: {sizes}")
+    return out
