@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.cli import main
 from crgpr.commands.camera import camera_frame
@@ -17,7 +18,7 @@ from crgpr.discovery.measured import ScreenSettings, validate_frame
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
 from crgpr.report.metrics import accuracy
 
@@ -36,7 +37,7 @@ def _meas(df, P):
 @pytest.fixture(scope="module")
 def sim():
     """The paper's rod released at 85 deg, recorded at 250 Hz (a camera's rate)."""
-    return simulate(85.0, RodParams(), SimSettings(dt=1e-4, t_end=0.6, record_every=40))
+    return simulate(85.0, paper_rod(), SimSettings(dt=1e-4, t_end=0.6, record_every=40))
 
 
 @pytest.mark.parametrize("prefilter", ["gp", "fd"])
@@ -158,7 +159,7 @@ def test_finer_simulator_data(tmp_path):
     the camera or at 51 markers: learning runs on the camera's grid and the learned rod
     lives on it."""
     cfg = load_config(SMOKE)
-    fine = RodParams(N=50)
+    fine = paper_rod(N=50)
     tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80))
     for stride, n in ((2, 25), (1, 50)):
         df = camera_frame(tr.t, tr.q[:, ::stride], 5e-4, np.random.default_rng(stride))
