@@ -8,13 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.learning.gradient_models import train_model
 from crgpr.learning.learned import LearnedRod, learned_energy, rollout, run_rollout
 from crgpr.learning.prefilter import fd_prefilter
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, node_weights, straight_rod
 from crgpr.physics.simulate import simulate
 
@@ -22,7 +23,7 @@ SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
 
 def test_hamiltonian_variant_with_exact_hz_reproduces_simulate():
-    P = RodParams(N=8)
+    P = paper_rod(N=8)
     S = SimSettings(dt=1e-4, t_end=0.1, record_every=5)
     ref = simulate(125.0, P, S)
     wds = node_weights(P.N) * P.ds
@@ -37,7 +38,7 @@ def test_hamiltonian_variant_with_exact_hz_reproduces_simulate():
 
 
 def test_divergence_reports_when_and_where():
-    P = RodParams(N=4)
+    P = paper_rod(N=4)
     wds = node_weights(P.N) * P.ds
 
     def force(q):
