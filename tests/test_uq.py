@@ -70,17 +70,26 @@ def test_posterior_draw_truth_is_covered_at_the_calibrated_rate() -> None:
     L = np.linalg.cholesky(post.cov(xt) + 1e-12 * np.eye(len(xt)))
     S, R = 20, 60
     cov = {lv: [] for lv in LEVELS}
+    narrow = {lv: [] for lv in LEVELS}  # negative control: the same samples, spread halved
     for _ in range(R):
         truth = mean + L @ rng.standard_normal(len(xt))
         comp = sparse.sample(S, 128, rng)
         f = comp(np.broadcast_to(xt, (S, *xt.shape)))  # (S, m)
+        f_half = f.mean(0) + 0.5 * (f - f.mean(0))
         for lv in LEVELS:
-            lo, hi = np.percentile(f, [50 - lv / 2, 50 + lv / 2], axis=0)
-            cov[lv].append(np.mean((truth >= lo) & (truth <= hi)))
+            for g, out in ((f, cov), (f_half, narrow)):
+                lo, hi = np.percentile(g, [50 - lv / 2, 50 + lv / 2], axis=0)
+                out[lv].append(np.mean((truth >= lo) & (truth <= hi)))
+
+    def z_score(c: list[float], lv: float) -> float:
+        c = np.asarray(c)
+        return (c.mean() - expected_coverage(S, lv)) / (c.std(ddof=1) / np.sqrt(R))
+
     for lv in LEVELS:
-        c = np.asarray(cov[lv])
-        z = (c.mean() - expected_coverage(S, lv)) / (c.std(ddof=1) / np.sqrt(R))
-        assert abs(z) < 3.29, (lv, c.mean(), expected_coverage(S, lv), z)
+        z = z_score(cov[lv], lv)
+        assert abs(z) < 3.29, (lv, np.mean(cov[lv]), expected_coverage(S, lv), z)
+        # the test has power: a band half as wide as the posterior's is flagged at every level
+        assert z_score(narrow[lv], lv) < -3.29, (lv, np.mean(narrow[lv]))
 
 
 def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
