@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from crgpr.physics.collocated import _collocated_forces
+from crgpr.physics.collocated import _collocated_forces, _nodal_forces
 from crgpr.physics.params import SCHEMES
 from crgpr.physics.rod import _internal_forces
 
@@ -146,9 +146,12 @@ def _kv_damp(v, m_r, P):
 
 @njit(cache=True)
 def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
-    """Elastic force kernel of the spatial scheme (0: variational, rod.py; 1: collocated)."""
+    """Elastic force kernel of the spatial scheme, index into ``SCHEMES`` (0: variational,
+    rod.py; 1: collocated, 2: collocated_nodal, collocated.py)."""
     if scheme == 1:
         return _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    if scheme == 2:
+        return _nodal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     return _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
 
 
@@ -237,7 +240,7 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
     Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
     ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
-    rod.py, or 'collocated', collocated.py). Raises SimulationDiverged."""
+    rod.py; 'collocated' or 'collocated_nodal', collocated.py). Raises SimulationDiverged."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)

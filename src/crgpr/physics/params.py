@@ -142,9 +142,10 @@ class RodParams:
 
 
 # Spatial discretisations of the rod (config key simulation.scheme): the variational one of
-# rod.py (the project's ground truth) and the collocated nodal finite differences of
-# collocated.py (the stencils of the paper's GPR 3 inputs).
-SCHEMES: tuple[str, ...] = ("variational", "collocated")
+# rod.py (the project's ground truth), the collocated nodal finite differences of
+# collocated.py (the stencils of the paper's GPR 3 inputs), and its fully nodal variant
+# (summation-by-parts, but with a zero-energy odd-even mode; see collocated.py).
+SCHEMES: tuple[str, ...] = ("variational", "collocated", "collocated_nodal")
 
 
 @dataclass(frozen=True)
