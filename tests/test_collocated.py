@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.learning.features import q_from_hz
 from crgpr.learning.prefilter import spatial_derivatives
@@ -19,7 +20,7 @@ from crgpr.physics import RodParams, SimSettings, SimulationDiverged, simulate
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, strains
 from crgpr.physics.simulate import energy
 
-PAPER = RodParams()  # Table I, N = 25
+PAPER = paper_rod()  # Table I (config.yaml), N = 25
 SCHEMES = ("variational", "collocated", "collocated_nodal")
 
 

@@ -399,13 +399,17 @@ def run_hamiltonian(
         d = 1e-6 * np.maximum(np.abs(p), 1e-6)
         return (velocity(p + d) - velocity(p - d)) / (2 * d)
 
+    last: list[np.ndarray] = []  # [p1, H_p(p1)] of the previous damping half-step
+
     def damp(p: np.ndarray) -> tuple[np.ndarray, float]:
-        v0 = velocity(p)
+        # two damping half-steps meet between steps: the second's H_p(p1) is the next one's v0
+        v0 = last[1] if last and last[0] is p else velocity(p)
         sl = slope(p) * zeta
         small = np.abs(sl * h) < 1e-12
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
         p1 = p - fac * v0 * free
         v1 = velocity(p1)
+        last[:] = [p1, v1]
         return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
