@@ -172,3 +172,37 @@ def test_finer_simulator_data(tmp_path):
                                              scheme="variational"))
         assert np.all(np.isfinite(r.q))
     json.dumps(man)
+
+
+def test_markers_anywhere_with_dropped_frames(sim, tmp_path):
+    """Eight markers off the model grid (no base marker), 5 % of the rows dropped and one marker
+    occluded for 40 ms: the GP prefilter rebuilds the state on the model's own grid (theta
+    within the shear-free reconstruction's error of the simulator's), the fd prefilter, which
+    needs raw nodal positions, is refused with a named error, and crgpr learn runs end to end
+    and records the markers it saw."""
+    from crgpr.discovery.kinematics import marker_positions
+
+    P = sim.params
+    s_m = np.array([0.04, 0.1, 0.17, 0.23, 0.29, 0.36, 0.43, 0.5])
+    xy = marker_positions(sim.q, s_m, P)
+    rng = np.random.default_rng(3)
+    T, S = np.meshgrid(sim.t, s_m, indexing="ij")
+    df = pd.DataFrame({"t": T.ravel(), "s": S.ravel(), "x": xy[..., 0].ravel(), "y": xy[..., 1].ravel()})
+    df.loc[(df["s"] == 0.29) & df["t"].between(0.2, 0.24), ["x", "y"]] = np.nan
+    df = df.drop(index=rng.choice(len(df), size=len(df) // 20, replace=False))
+    df = df.sample(frac=1.0, random_state=0)  # rows in any order
+    meas = validate_frame(df, "markers", P.L0, P.ds, SCREEN)
+    arr, rep = camera.positions_to_state(meas, P, "gp", SETTINGS, seed=1)
+    assert rep["markers"]["n_markers"] == 8 and max(rep["markers"]["missing_fraction"]) > 0.05
+    idx = np.searchsorted(sim.t, arr["t"] - 1e-12)
+    th_err = arr["theta"][:, 1:] - sim.q[idx, 1:, 2]
+    assert np.sqrt(np.mean(th_err**2)) < 0.02
+    with pytest.raises(camera.MeasuredDataError, match="fd prefilter"):
+        camera.positions_to_state(meas, P, "fd", SETTINGS, seed=1)
+    path = tmp_path / "markers.parquet"
+    write_parquet(df, path)
+    man = learn(path, tmp_path / "m", load_config(SMOKE), "objective", "gp")
+    assert man["rod"]["N"] == load_config(SMOKE)["rod"]["N"] and man["state"]["markers"]["n_markers"] == 8
+    model, _ = load_learned(tmp_path / "m")
+    r = rollout(model, 60.0, SimSettings(dt=1e-4, t_end=0.02, record_every=10))
+    assert np.all(np.isfinite(r.q))
