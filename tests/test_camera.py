@@ -37,7 +37,7 @@ def _meas(df, P):
 @pytest.fixture(scope="module")
 def sim():
     """The paper's rod released at 85 deg, recorded at 250 Hz (a camera's rate)."""
-    return simulate(85.0, paper_rod(), SimSettings(dt=1e-4, t_end=0.6, record_every=40))
+    return simulate(85.0, paper_rod(), SimSettings(dt=1e-4, t_end=0.6, record_every=40, scheme="variational"))
 
 
 @pytest.mark.parametrize("prefilter", ["gp", "fd"])
@@ -79,7 +79,7 @@ def smoke_models(tmp_path_factory):
     """Smoke-sized models learned from the full state and from positions only (noise-free)."""
     cfg = load_config(SMOKE)
     P = rod_params(cfg)
-    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40))
+    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
     d = tmp_path_factory.mktemp("learn")
     full = trajectory_frame(tr).drop(columns=["theta0_deg", "s"])
     write_parquet(full, d / "full.parquet")
@@ -103,7 +103,7 @@ def test_positions_only_recovers_the_full_state_accuracy(smoke_models):
     """Noise-free positions: RMSE(theta) at an unseen angle within 0.05 rad of the full-state
     model's (the gap is the shear the positions cannot show, see learning/camera.py)."""
     cfg, d = smoke_models
-    st = SimSettings(dt=1e-4, t_end=0.2, record_every=5)
+    st = SimSettings(dt=1e-4, t_end=0.2, record_every=5, scheme="variational")
     gt = simulate(60.0, rod_params(cfg), st)
     out = {}
     for k in ("m_full", "m_pos"):
@@ -160,7 +160,7 @@ def test_finer_simulator_data(tmp_path):
     lives on it."""
     cfg = load_config(SMOKE)
     fine = paper_rod(N=50)
-    tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80))
+    tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80, scheme="variational"))
     for stride, n in ((2, 25), (1, 50)):
         df = camera_frame(tr.t, tr.q[:, ::stride], 5e-4, np.random.default_rng(stride))
         path = _bad(tmp_path, df, f"fine_{n}.parquet")
@@ -168,7 +168,8 @@ def test_finer_simulator_data(tmp_path):
         assert man["rod"]["N"] == n
         assert man["state"]["noise_std_m_estimated"] == pytest.approx(5e-4, rel=0.3)
         model, _ = load_learned(tmp_path / f"m{n}")
-        r = rollout(model, 60.0, SimSettings(dt=5e-5 if n == 50 else 1e-4, t_end=0.02, record_every=10))
+        r = rollout(model, 60.0, SimSettings(dt=5e-5 if n == 50 else 1e-4, t_end=0.02, record_every=10,
+                                             scheme="variational"))
         assert np.all(np.isfinite(r.q))
     json.dumps(man)
 
@@ -203,5 +204,5 @@ def test_markers_anywhere_with_dropped_frames(sim, tmp_path):
     man = learn(path, tmp_path / "m", load_config(SMOKE), "objective", "gp")
     assert man["rod"]["N"] == load_config(SMOKE)["rod"]["N"] and man["state"]["markers"]["n_markers"] == 8
     model, _ = load_learned(tmp_path / "m")
-    r = rollout(model, 60.0, SimSettings(dt=1e-4, t_end=0.02, record_every=10))
+    r = rollout(model, 60.0, SimSettings(dt=1e-4, t_end=0.02, record_every=10, scheme="variational"))
     assert np.all(np.isfinite(r.q))

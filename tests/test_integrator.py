@@ -22,7 +22,7 @@ from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, 
 from crgpr.physics.simulate import dissipation_coefficients, simulate
 
 P = paper_rod(N=8)
-S = SimSettings(dt=1e-4, t_end=0.1, record_every=5)
+S = SimSettings(dt=1e-4, t_end=0.1, record_every=5, scheme="variational")
 
 
 def _analytic():
@@ -102,7 +102,8 @@ def test_every_path_stops_at_the_same_bound_and_keeps_the_good_records(path):
             v0 = np.zeros_like(q0)
             v0[-1, 0] = 30.0
             simulate(0.0, paper_rod(N=8, E=1.0, zeta=0.0), SimSettings(dt=1e-4, t_end=n_steps * 1e-4,
-                                                                       record_every=5), v0=v0)
+                                                                       record_every=5, scheme="variational"),
+                     v0=v0)
         elif path == "hamiltonian":
             run_hamiltonian(q0, np.zeros_like(q0), lambda q: push + gu * 0.0, lambda p: p / mass, free,
                             0.0, 1e-4, n_steps, 5, wds)

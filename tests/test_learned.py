@@ -24,7 +24,7 @@ SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
 def test_hamiltonian_variant_with_exact_hz_reproduces_simulate():
     P = paper_rod(N=8)
-    S = SimSettings(dt=1e-4, t_end=0.1, record_every=5)
+    S = SimSettings(dt=1e-4, t_end=0.1, record_every=5, scheme="variational")
     ref = simulate(125.0, P, S)
     wds = node_weights(P.N) * P.ds
     mass = np.array([P.rhoA, P.rhoA, P.rhoI])
@@ -83,7 +83,8 @@ def test_objective_model_reproduces_its_training_trajectory(trained):
 def test_paper_model_runs_and_tracks_training_start(trained):
     cfg, traj, d = trained
     P, S = rod_params(cfg), sim_settings(cfg)
-    roll = rollout(LearnedRod.from_dir(d, "paper", P), 85.0, SimSettings(S.dt, 0.05, S.record_every))
+    roll = rollout(LearnedRod.from_dir(d, "paper", P), 85.0,
+                   SimSettings(S.dt, 0.05, S.record_every, scheme="variational"))
     n = roll.t.size
     err = roll.q[:, 1:, 2] - traj.q[:n, 1:, 2]
     assert np.all(np.isfinite(roll.q))

@@ -24,7 +24,7 @@ ST = ScreenSettings(min_rate_hz=200.0, min_samples=20, outlier_k=8.0, outlier_mi
 
 @pytest.fixture(scope="module")
 def traj():
-    return simulate(85.0, ROD, SimSettings(dt=1e-4, t_end=0.4, record_every=50))
+    return simulate(85.0, ROD, SimSettings(dt=1e-4, t_end=0.4, record_every=50, scheme="variational"))
 
 
 def _frame(traj, noise=0.0, seed=0, **camera):

@@ -14,7 +14,8 @@ from crgpr.report.metrics import ACCURACY_COLUMNS, accuracy, accuracy_table, tab
 
 @pytest.fixture(scope="module")
 def gt():
-    return trajectory_frame(simulate(60.0, paper_rod(N=6), SimSettings(dt=1e-4, t_end=0.05, record_every=10)))
+    return trajectory_frame(simulate(60.0, paper_rod(N=6),
+                                     SimSettings(dt=1e-4, t_end=0.05, record_every=10, scheme="variational")))
 
 
 def test_identical_rollout_is_perfect(gt):

@@ -66,7 +66,7 @@ def test_theta_oracle_exact_on_uniform_arc(gamma):
 def test_all_oracle_rollout_tracks_ground_truth():
     """The oracle model, integrated like any learned rod, stays close to the simulator."""
     p = paper_rod(N=10)
-    s = SimSettings(dt=1e-4, t_end=0.1, record_every=10)
+    s = SimSettings(dt=1e-4, t_end=0.1, record_every=10, scheme="variational")
     gt = simulate(100.0, p, s)
     tr = rollout(LearnedRod(oracle_components(p), "paper", p, None), 100.0, s)
     err = np.sqrt(np.mean((tr.q[..., 2] - gt.q[..., 2]) ** 2))

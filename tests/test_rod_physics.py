@@ -16,7 +16,7 @@ from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import internal_forces, strains, variational_derivative
 from crgpr.physics.simulate import energy, simulate
 
-PAPER = SimSettings(dt=1.0e-4, t_end=2.0, record_every=5)
+PAPER = SimSettings(dt=1.0e-4, t_end=2.0, record_every=5, scheme="variational")
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_clamped_base_held_exactly(paper_run):
 
 def _tip_resultant(N: int) -> tuple[float, float]:
     p = paper_rod(N=N)
-    tr = simulate(85.0, p, SimSettings(dt=2.0e-5, t_end=0.5, record_every=2500))
+    tr = simulate(85.0, p, SimSettings(dt=2.0e-5, t_end=0.5, record_every=2500, scheme="variational"))
     st_ = strains(tr.q[-1], p)
     n = np.hypot(st_["n1"], st_["n2"])
     m = np.abs(st_["m"])
@@ -86,7 +86,7 @@ def test_static_cantilever_matches_euler_bernoulli():
     E is raised and g lowered so the deflection is 0.08 % of L (linear regime).
     """
     p = paper_rod(E=3.0e8, g=0.0981, zeta=1.0)
-    tr = simulate(0.0, p, SimSettings(dt=1.0e-5, t_end=1.5, record_every=5000))
+    tr = simulate(0.0, p, SimSettings(dt=1.0e-5, t_end=1.5, record_every=5000, scheme="variational"))
     w_eb = p.rhoA * p.g * p.L0**4 / (8.0 * p.EI)
     assert -tr.q[-1, -1, 1] == pytest.approx(w_eb, rel=0.02)
     # settled: the last two records agree to 1e-4 relative
@@ -97,7 +97,8 @@ def test_spatial_convergence_second_order():
     """Halving ds shrinks the change of theta(s, t) about fourfold (second-order scheme)."""
     runs = {}
     for N in (20, 40, 80):
-        tr = simulate(85.0, paper_rod(N=N), SimSettings(dt=2.0e-5, t_end=0.5, record_every=250))
+        tr = simulate(85.0, paper_rod(N=N),
+                      SimSettings(dt=2.0e-5, t_end=0.5, record_every=250, scheme="variational"))
         runs[N] = tr.q[:, :: N // 10, 2]  # theta at s = 0, 0.05, ..., 0.5 m
     d1 = np.abs(runs[40] - runs[20]).max()
     d2 = np.abs(runs[80] - runs[40]).max()

@@ -127,7 +127,7 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
 
 
 PARAMS = paper_rod(N=6)
-SHORT = SimSettings(dt=1e-4, t_end=0.03, record_every=10)
+SHORT = SimSettings(dt=1e-4, t_end=0.03, record_every=10, scheme="variational")
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def model_dir(tmp_path_factory) -> Path:
     (0.2 s, 51 records, 150 training points per model: cheap, the tests only need models that
     roll out 0.03 s)."""
     out = tmp_path_factory.mktemp("models")
-    traj = simulate(85.0, PARAMS, SimSettings(dt=1e-4, t_end=0.2, record_every=40))
+    traj = simulate(85.0, PARAMS, SimSettings(dt=1e-4, t_end=0.2, record_every=40, scheme="variational"))
     center = 0.5 * float(traj.q[:, 1:, 2].min() + traj.q[:, 1:, 2].max())
     feats = model_features(traj.q, traj.p, PARAMS, center)
     truth = true_targets(traj.q, traj.p, PARAMS)
@@ -259,7 +259,7 @@ def test_true_targets_match_the_rod_forces() -> None:
     from crgpr.physics.rod import internal_forces, node_weights
 
     params = paper_rod(N=8)
-    traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100))
+    traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100, scheme="variational"))
     tt = true_targets(traj.q, traj.p, params)
     wds = node_weights(params.N) * params.ds
     F = internal_forces(traj.q[-1], params, float(traj.q[0, 0, 2]))[0] / wds[:, None]

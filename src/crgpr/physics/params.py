@@ -142,13 +142,26 @@ class RodParams:
         return 2.0 / self.max_frequency()
 
 
+# Spatial discretisations of the rod (config key simulation.scheme): the variational one of
+# rod.py (the project's ground truth), the collocated nodal finite differences of
+# collocated.py (the stencils of the paper's GPR 3 inputs), and its fully nodal variant
+# (summation-by-parts, but with a zero-energy odd-even mode; see collocated.py).
+SCHEMES: tuple[str, ...] = ("variational", "collocated", "collocated_nodal")
+
+
 @dataclass(frozen=True)
 class SimSettings:
-    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples)."""
+    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples) and the
+    spatial scheme (``SCHEMES``; the paper does not state its own, 'variational' is ours)."""
 
     dt: float  # time step [s]
     t_end: float  # final time [s]
     record_every: int  # record every k-th step
+    scheme: str  # spatial discretisation of the elastic forces (SCHEMES)
+
+    def __post_init__(self) -> None:
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"unknown spatial scheme {self.scheme!r}; expected one of {SCHEMES}")
 
     @property
     def n_steps(self) -> int:
