@@ -168,7 +168,7 @@ def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None
     if t_end is not None and not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"--t-end {t_end}: must be a positive number of seconds")
     st = SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
-                     record_every=base.record_every)
+                     record_every=base.record_every, scheme=base.scheme)
     if st.dt >= params.dt_stable():
         raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
                           f"need < {params.dt_stable():.3g} s")

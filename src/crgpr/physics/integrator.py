@@ -44,6 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from crgpr.physics.collocated import _collocated_forces
+from crgpr.physics.params import SCHEMES
 from crgpr.physics.rod import _internal_forces
 
 # A rod of length L released from rest cannot move its material points faster than about
@@ -143,12 +145,21 @@ def _kv_damp(v, m_r, P):
 
 
 @njit(cache=True)
+def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
+    """Elastic force kernel of the spatial scheme (0: variational, rod.py; 1: collocated)."""
+    if scheme == 1:
+        return _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    return _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+
+
+@njit(cache=True)
 def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kappa0,
-                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv):
+                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv,
+                scheme):
     """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step."""
     n = q.shape[0]
     F = np.zeros((n, 3))
-    _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     diss = 0.0
     out_q[0] = q
     out_v[0] = v
@@ -167,7 +178,7 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             q[i, 0] += dt * v[i, 0]
             q[i, 1] += dt * v[i, 1]
             q[i, 2] += dt * v[i, 2]
-        _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+        _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
@@ -220,12 +231,15 @@ def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
 
 
 def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
-            length=None, kv: np.ndarray | None = None):
+            length=None, kv: np.ndarray | None = None, scheme: str = "variational"):
     """Integrate the analytic rod (compiled ``run_generic``). ``rod_args`` are the trailing
     arguments of the force kernel; ``grav_force`` the nodal y-force of gravity (-m_i g);
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
-    Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping).
-    Raises SimulationDiverged."""
+    Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
+    ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
+    rod.py, or 'collocated', collocated.py). Raises SimulationDiverged."""
+    if scheme not in SCHEMES:
+        raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")
@@ -236,7 +250,7 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     out_v = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     status = _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, *rod_args,
-                         dt, n_steps, every, reach, out_q, out_v, out_d, kv)
+                         dt, n_steps, every, reach, out_q, out_v, out_d, kv, SCHEMES.index(scheme))
     t = np.arange(n_rec) * dt * every
     if status >= 0:
         r = status // every

@@ -141,13 +141,25 @@ class RodParams:
         return 2.0 / self.max_frequency()
 
 
+# Spatial discretisations of the rod (config key simulation.scheme): the variational one of
+# rod.py (the project's ground truth) and the collocated nodal finite differences of
+# collocated.py (the stencils of the paper's GPR 3 inputs).
+SCHEMES: tuple[str, ...] = ("variational", "collocated")
+
+
 @dataclass(frozen=True)
 class SimSettings:
-    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples)."""
+    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples) and the
+    spatial scheme (``SCHEMES``; the paper does not state its own, 'variational' is ours)."""
 
     dt: float = 1.0e-4  # time step [s]
     t_end: float = 2.0  # final time [s]
     record_every: int = 5  # record every k-th step
+    scheme: str = "variational"  # spatial discretisation of the elastic forces
+
+    def __post_init__(self) -> None:
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"unknown spatial scheme {self.scheme!r}; expected one of {SCHEMES}")
 
     @property
     def n_steps(self) -> int:
