@@ -35,7 +35,8 @@ def variant_metrics(cfg: dict[str, Any], variant: str, method: str, angles: list
     acc["t_diverged"] = [float(m["t_diverged"]) if m.get("diverged") else math.nan for m in metas]
     write_parquet(acc, out, {"kind": "variant_accuracy", "variant": variant, "method": method,
                              "angles": angles, "definitions": metrics_mod.__doc__,
-                             "inputs": {r: m.get("code_version") for r, m in zip(rollouts, metas, strict=True)}})
+                             "inputs": {r: m.get("code_version")
+                                        for r, m in zip(rollouts, metas, strict=True)}})
 
 
 def crgpr_sensitivity(cfg: dict[str, Any], variants: list[str], accuracy: list[str], table_out: str,

@@ -65,7 +65,8 @@ def figure(tab: pd.DataFrame, angles: list[int], path: str | Path, reference: st
         ax.plot(x + (k - (len(angles) - 1) / 2) * 0.08, tab[f"rmse_theta_{a}"], "o", ms=4, label=f"{a} deg")
     for i, n in enumerate(tab["divergences"]):
         if n:
-            ax.annotate(f"{n} div.", (x[i], tab["rmse_theta_mean"].iloc[i]), ha="center", va="bottom", fontsize=8)
+            ax.annotate(f"{n} div.", (x[i], tab["rmse_theta_mean"].iloc[i]), ha="center", va="bottom",
+                        fontsize=8)
     if reference is not None and reference in set(tab["variant"]):
         ref = float(tab.loc[tab["variant"] == reference, "rmse_theta_mean"].iloc[0])
         ax.axhline(ref, ls="--", color="k", lw=0.8, label=f"{reference} mean")
