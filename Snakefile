@@ -36,6 +36,7 @@ include: "workflow/rules/discovery.smk"
 include: "workflow/rules/camera.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/oracle.smk"
+include: "workflow/rules/variant_paths.smk"
 include: "workflow/rules/variants.smk"
 
 
