@@ -48,5 +48,5 @@ def test_paper_hyp_model_loads_and_rolls_out_on_smoke(tmp_path):
         comps[name] = ExactMean(tmp_path / name)
         assert np.isclose(comps[name].gp.sigma_f, hyp["sigma_f"])
     model = LearnedRod(comps, "paper", P, center)
-    tr = rollout(model, 125.0, SimSettings(dt=1e-4, t_end=0.01, record_every=10))
+    tr = rollout(model, 125.0, SimSettings(dt=1e-4, t_end=0.01, record_every=10, scheme="variational"))
     assert tr.q.shape == (11, P.N + 1, 3) and np.all(np.isfinite(tr.q))

@@ -35,6 +35,13 @@ def schema() -> dict[str, Any]:
     return yaml.safe_load(text)
 
 
+def schema_defaults(section: str) -> dict[str, Any]:
+    """The schema's ``default`` of every key of a config ``section`` that declares one (the
+    paper's rod and time grid, Table I and Sec. IV; equal to config.yaml's, checked by a test)."""
+    props = schema()["properties"][section]["properties"]
+    return {k: v["default"] for k, v in props.items() if "default" in v}
+
+
 def schema_path() -> Path:
     return Path(str(resources.files("crgpr").joinpath("schemas/config.schema.yaml")))
 

@@ -55,8 +55,8 @@ def model_params(path: str | Path, cfg: dict[str, Any]) -> RodParams:
     """The model's rod: ``rod`` of the config on the file's node grid.
 
     A file with a ``node`` column puts its markers at s = node * ds with N = its largest
-    node (the camera's grid, ds = L0 / N); a file with ``s`` keeps the config's N, and its
-    markers must then lie on that grid (``learning.camera.check_node_grid``).
+    node (the camera's grid, ds = L0 / N); a file with ``s`` (markers anywhere) keeps the
+    config's N, and the state is rebuilt on that grid (``learning.camera``).
     """
     params = rod_params(cfg)
     try:

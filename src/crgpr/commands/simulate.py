@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params, schema, sim_settings
+from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params, schema_defaults, sim_settings
 from crgpr.io import write_parquet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import energy_frame, simulate, trajectory_frame
@@ -68,12 +68,8 @@ def _cli(args: argparse.Namespace) -> None:
     if cfg_path:
         cfg = load_config(cfg_path)
         rod, sim, base = cfg["rod"], cfg["simulation"], str(cfg_path)
-    else:  # the paper's rod (RodParams' documented defaults), restricted to the config's keys
-        keys = schema()["properties"]["rod"]["properties"]
-        rod = {k: v for k, v in RodParams().to_dict().items() if k in keys}
-        d = SimSettings()
-        sim = {"dt_s": d.dt, "t_end_s": d.t_end, "record_every": d.record_every, "scheme": d.scheme}
-        base = "the paper's defaults"
+    else:  # the paper's rod and time grid: the config schema's defaults (= config.yaml's)
+        rod, sim, base = schema_defaults("rod"), schema_defaults("simulation"), "the paper's defaults"
     params, settings = cli_rod_sim(rod, sim, args.set, args.dt, args.t_end, args.record_every, base,
                                    args.scheme)
     if not math.isfinite(args.theta0):

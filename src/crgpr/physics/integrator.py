@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from crgpr.physics.collocated import _collocated_forces
+from crgpr.physics.collocated import _collocated_forces, _nodal_forces
 from crgpr.physics.params import SCHEMES
 from crgpr.physics.rod import _internal_forces
 
@@ -146,9 +146,12 @@ def _kv_damp(v, m_r, P):
 
 @njit(cache=True)
 def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
-    """Elastic force kernel of the spatial scheme (0: variational, rod.py; 1: collocated)."""
+    """Elastic force kernel of the spatial scheme, index into ``SCHEMES`` (0: variational,
+    rod.py; 1: collocated, 2: collocated_nodal, collocated.py)."""
     if scheme == 1:
         return _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    if scheme == 2:
+        return _nodal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     return _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
 
 
@@ -237,7 +240,7 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
     Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
     ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
-    rod.py, or 'collocated', collocated.py). Raises SimulationDiverged."""
+    rod.py; 'collocated' or 'collocated_nodal', collocated.py). Raises SimulationDiverged."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
@@ -396,13 +399,17 @@ def run_hamiltonian(
         d = 1e-6 * np.maximum(np.abs(p), 1e-6)
         return (velocity(p + d) - velocity(p - d)) / (2 * d)
 
+    last: list[np.ndarray] = []  # [p1, H_p(p1)] of the previous damping half-step
+
     def damp(p: np.ndarray) -> tuple[np.ndarray, float]:
-        v0 = velocity(p)
+        # two damping half-steps meet between steps: the second's H_p(p1) is the next one's v0
+        v0 = last[1] if last and last[0] is p else velocity(p)
         sl = slope(p) * zeta
         small = np.abs(sl * h) < 1e-12
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
         p1 = p - fac * v0 * free
         v1 = velocity(p1)
+        last[:] = [p1, v1]
         return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
