@@ -16,6 +16,7 @@ rule or a rule's resources cannot be read.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import re
 import statistics
@@ -55,8 +56,14 @@ def parse_rules(rule_dir: Path) -> dict[str, Rule]:
         section = None
         for line in smk.read_text().splitlines():
             m = re.match(r"^rule (\w+):", line)
-            if m:
-                current = rules[m.group(1)] = Rule(m.group(1), smk.name)
+            u = re.match(r"^use rule (\w+) as (\w+) with:", line)
+            if m or u:
+                if u:  # inherits the parent's threads and resources; its own sections override
+                    current = rules[u.group(2)] = dataclasses.replace(
+                        rules[u.group(1)], name=u.group(2), source=smk.name, benchmark=None,
+                        seconds=[], rss=[])
+                else:
+                    current = rules[m.group(1)] = Rule(m.group(1), smk.name)
                 section = None
                 continue
             if current is None:

@@ -25,7 +25,8 @@ per failed check and exits 1.
    Timing keys/columns are wall-clock measurements: metadata/JSON keys ``seconds``,
    ``seconds_hyper``, ``seconds_rollout``, ``fit_seconds``, ``train_seconds``, ``sampling_s``,
    ``runtime_s`` and the ``timing_s`` dict; table columns ``minutes``, ``train_seconds``,
-   ``runtime_s``, ``wall_s`` (Parquet and CSV). ``code_version`` (package version + git commit)
+   ``runtime_s``, ``wall_s``, ``seconds_batch`` (Parquet and
+   CSV). ``code_version`` (package version + git commit)
    is compared like any other key: a local run made at another commit does not count;
    ``--ignore-code-version`` allows it where the commits differ only outside ``src/``.
 """
@@ -46,7 +47,7 @@ TIMING_KEYS = frozenset(
     {"seconds", "seconds_hyper", "seconds_rollout", "fit_seconds", "train_seconds", "sampling_s",
      "runtime_s", "timing_s"}
 )
-TIMING_COLUMNS = frozenset({"minutes", "train_seconds", "runtime_s", "wall_s"})
+TIMING_COLUMNS = frozenset({"minutes", "train_seconds", "runtime_s", "wall_s", "seconds_batch"})
 # paper_vs_reproduction.csv: the timing rows' measured columns
 TIMING_ROW_SOURCE = "Table (timing)"
 TIMING_ROW_COLUMNS = ("ours", "abs_diff", "rel_diff")
