@@ -15,8 +15,9 @@ flow). They share one representation of a single-output GP mean in the units of 
   units; ``truncation_bound`` in output units), at EVERY input. The centres within r_cut are
   found with a cell grid in lengthscale-scaled inputs: cells of width r_cut / 2 along the scaled
   input with the widest spread, the centres of each cell sorted along the second widest, so a
-  query visits 5 cells and bisects a window |du_2| <= r_cut in each, then checks the full
-  distance; ``tol = 0`` is the dense sum;
+  query visits 5 cells and bisects a window |du_2| <= r_cut in each, then sums the window with
+  the full distance masked at r_cut (SIMD loops; SE exp by a polynomial of relative error
+  < 1e-13); ``tol = 0`` is the dense sum;
 * ``KernelMean.dtc(gp, Z, w, beta)``: the sparse DTC / subset-of-regressors mean (``dtc_fit``),
   centres the M inducing inputs; O(M) per point;
 * ``Table1D``: a 1-D mean tabulated on a grid, linear interpolation, 0 (the prior mean)
@@ -206,41 +207,60 @@ def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
     return KiV, np.zeros(0)
 
 
-@njit(cache=True)
-def _truncated_sum(Ql, Ul, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out):
-    """out[i] = sum_j a_j k(Ql_i, Ul_j) / sigma_f^2 over the centres with r <= rcut (cell grid:
-    ``KernelMean._grid``); centres sorted by (cell along k0, key1 = coordinate k1)."""
+@njit(cache=True, fastmath=True, inline="always")
+def _exp_neg_half_acc(r2):
+    """exp(-r2 / 2) for 0 <= r2 <= 80 (clipped above): exp(u / 256)^256 with a degree-11 Taylor
+    polynomial, relative error < 1e-13 (measured 3.8e-14 on [0, 80]); vectorisable."""
+    u = -0.5 * min(r2, 80.0) * 0.00390625
+    p = 1.0
+    for k in range(11, 0, -1):
+        p = 1.0 + u / k * p
+    for _ in range(8):
+        p = p * p
+    return p
+
+
+@njit(cache=True, fastmath=True)
+def _truncated_sum(Ql, ZT, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out):
+    """out[i] = sum_j a_j k(Ql_i, Z_j) / sigma_f^2 over the centres with r <= rcut (cell grid:
+    ``KernelMean._grid``); centres ZT (d, M) sorted by (cell along k0, key1 = coordinate k1).
+    Inner loops run over contiguous centres (SIMD): the squared distances of a window, then
+    the masked kernel sum (SE: ``_exp_neg_half_acc``)."""
     nq, d = Ql.shape
     ncell = starts.shape[0] - 1
     rc2 = rcut * rcut
+    r2 = np.empty(ZT.shape[1])
     for i in range(nq):
         q0 = Ql[i, k0]
         q1 = Ql[i, k1]
-        c_lo = int(math.floor((q0 - rcut - lo0) / h))
-        c_hi = int(math.floor((q0 + rcut - lo0) / h))
-        if c_lo < 0:
-            c_lo = 0
-        if c_hi > ncell - 1:
-            c_hi = ncell - 1
+        c_lo = max(int(math.floor((q0 - rcut - lo0) / h)), 0)
+        c_hi = min(int(math.floor((q0 + rcut - lo0) / h)), ncell - 1)
         acc = 0.0
         for c in range(c_lo, c_hi + 1):
             s, e = starts[c], starts[c + 1]
             if s == e:
                 continue
-            j0 = s + np.searchsorted(key1[s:e], q1 - rcut)
-            j1 = s + np.searchsorted(key1[s:e], q1 + rcut, side="right")
-            for j in range(j0, j1):
-                r2 = 0.0
-                for k in range(d):
-                    dd = Ql[i, k] - Ul[j, k]
-                    r2 += dd * dd
-                if r2 > rc2:
-                    continue
-                if kernel_id == 0:
-                    acc += a[j] * math.exp(-0.5 * r2)
-                else:
-                    r = math.sqrt(r2)
-                    acc += a[j] * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+            j0 = s + int(np.searchsorted(key1[s:e], q1 - rcut))
+            j1 = s + int(np.searchsorted(key1[s:e], q1 + rcut, side="right"))
+            m = j1 - j0  # the window, indexed from 0 (slices: the loops vectorise)
+            for t in range(m):
+                r2[t] = 0.0
+            for k in range(d):
+                qk = Ql[i, k]
+                zk = ZT[k, j0:j1]
+                for t in range(m):
+                    dd = qk - zk[t]
+                    r2[t] += dd * dd
+            aw = a[j0:j1]
+            if kernel_id == 0:
+                for t in range(m):
+                    w = aw[t] if r2[t] <= rc2 else 0.0
+                    acc += w * _exp_neg_half_acc(r2[t])
+            else:
+                for t in range(m):
+                    if r2[t] <= rc2:
+                        r = math.sqrt(r2[t])
+                        acc += aw[t] * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2[t]) * math.exp(-SQRT5 * r)
         out[i] = acc
 
 
@@ -294,9 +314,9 @@ class KernelMean:
         self.h = max(0.5 * self.rcut, float(spread[self.k0]) / (4.0 * M), 1e-300)
         cell = np.floor((Ul[:, self.k0] - self.lo0) / self.h).astype(np.int64)
         order = np.lexsort((Ul[:, self.k1], cell))
-        self.Ul_sorted = np.ascontiguousarray(Ul[order])
+        self.ZT_sorted = np.ascontiguousarray(Ul[order].T)
         self.a_sorted = np.ascontiguousarray(self.a[0, order])
-        self.key1 = np.ascontiguousarray(self.Ul_sorted[:, self.k1])
+        self.key1 = np.ascontiguousarray(self.ZT_sorted[self.k1])
         self.starts = np.searchsorted(cell[order], np.arange(int(cell.max()) + 2)).astype(np.int64)
 
     @classmethod
@@ -340,7 +360,7 @@ class KernelMean:
                          self.basis_id, self.kernel_id, self.y_mean, self.y_scale, out)
             return out.reshape(shape)
         U = (X2 - self.x_mean) / self.x_scale
-        _truncated_sum(np.ascontiguousarray(U / self.ell), self.Ul_sorted, self.a_sorted, self.key1,
+        _truncated_sum(np.ascontiguousarray(U / self.ell), self.ZT_sorted, self.a_sorted, self.key1,
                        self.starts, self.lo0, self.h, self.k0, self.k1, self.rcut, self.kernel_id, out)
         out *= self.sf2
         _add_basis(U, self.beta, self.basis_id, out)
