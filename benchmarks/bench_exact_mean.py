@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     model = LearnedRod.from_dir(a.models, a.features, P)
     t_build = time.perf_counter() - t0
-    warm = SimSettings(dt=S.dt, t_end=20 * S.dt, record_every=S.record_every)
+    warm = SimSettings(dt=S.dt, t_end=20 * S.dt, record_every=S.record_every, scheme=S.scheme)
     rollout(model, a.angle, warm)  # compile the numba kernels outside the timing
     t0 = time.perf_counter()
     tr = rollout(model, a.angle, S)

@@ -34,7 +34,8 @@ def main() -> None:
     ap.add_argument("--noise-mm", type=float, default=1.0)
     args = ap.parse_args()
     cfg = load_config(args.config)
-    tr = simulate(85.0, rod_params(cfg), SimSettings(dt=1e-4, t_end=2.0, record_every=40))
+    tr = simulate(85.0, rod_params(cfg), SimSettings(dt=1e-4, t_end=2.0, record_every=40,
+                                                     scheme=cfg["simulation"]["scheme"]))
     df = camera_frame(tr.t, tr.q, args.noise_mm * 1e-3, np.random.default_rng(0))
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "camera.parquet"

@@ -14,15 +14,17 @@ import argparse
 import statistics
 import time
 
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.physics.simulate import simulate
 
 
 def main() -> None:
+    cfg = load_config("config.yaml")  # the paper's rod and time grid
+    rod = rod_params(cfg)
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=20)
     args = ap.parse_args()
-    p, s = RodParams(), SimSettings()
+    p, s = rod, sim_settings(cfg)
     t0 = time.perf_counter()
     simulate(85.0, p, s)
     warm = time.perf_counter() - t0

@@ -91,7 +91,7 @@ def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):
 
     ks = iter(range(len(gps)))
     monkeypatch.setattr(blackbox.KernelMean, "exact", staticmethod(lambda gp: Runaway(next(ks))))
-    settings = SimSettings(dt=1e-4, t_end=0.2, record_every=5)
+    settings = SimSettings(dt=1e-4, t_end=0.2, record_every=5, scheme="variational")
     t, q, p, info = blackbox.rollout(gps, 60.0, params, settings)
     assert info["diverged"] and info["node_diverged"] == params.N
     assert 0 < info["t_diverged"] < 0.2

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.cli import main
 from crgpr.commands.camera import camera_frame
@@ -17,7 +18,7 @@ from crgpr.discovery.measured import ScreenSettings, validate_frame
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
 from crgpr.report.metrics import accuracy
 
@@ -36,7 +37,7 @@ def _meas(df, P):
 @pytest.fixture(scope="module")
 def sim():
     """The paper's rod released at 85 deg, recorded at 250 Hz (a camera's rate)."""
-    return simulate(85.0, RodParams(), SimSettings(dt=1e-4, t_end=0.6, record_every=40))
+    return simulate(85.0, paper_rod(), SimSettings(dt=1e-4, t_end=0.6, record_every=40, scheme="variational"))
 
 
 @pytest.mark.parametrize("prefilter", ["gp", "fd"])
@@ -78,7 +79,7 @@ def smoke_models(tmp_path_factory):
     """Smoke-sized models learned from the full state and from positions only (noise-free)."""
     cfg = load_config(SMOKE)
     P = rod_params(cfg)
-    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40))
+    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
     d = tmp_path_factory.mktemp("learn")
     full = trajectory_frame(tr).drop(columns=["theta0_deg", "s"])
     write_parquet(full, d / "full.parquet")
@@ -102,7 +103,7 @@ def test_positions_only_recovers_the_full_state_accuracy(smoke_models):
     """Noise-free positions: RMSE(theta) at an unseen angle within 0.05 rad of the full-state
     model's (the gap is the shear the positions cannot show, see learning/camera.py)."""
     cfg, d = smoke_models
-    st = SimSettings(dt=1e-4, t_end=0.2, record_every=5)
+    st = SimSettings(dt=1e-4, t_end=0.2, record_every=5, scheme="variational")
     gt = simulate(60.0, rod_params(cfg), st)
     out = {}
     for k in ("m_full", "m_pos"):
@@ -158,8 +159,8 @@ def test_finer_simulator_data(tmp_path):
     the camera or at 51 markers: learning runs on the camera's grid and the learned rod
     lives on it."""
     cfg = load_config(SMOKE)
-    fine = RodParams(N=50)
-    tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80))
+    fine = paper_rod(N=50)
+    tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80, scheme="variational"))
     for stride, n in ((2, 25), (1, 50)):
         df = camera_frame(tr.t, tr.q[:, ::stride], 5e-4, np.random.default_rng(stride))
         path = _bad(tmp_path, df, f"fine_{n}.parquet")
@@ -167,6 +168,41 @@ def test_finer_simulator_data(tmp_path):
         assert man["rod"]["N"] == n
         assert man["state"]["noise_std_m_estimated"] == pytest.approx(5e-4, rel=0.3)
         model, _ = load_learned(tmp_path / f"m{n}")
-        r = rollout(model, 60.0, SimSettings(dt=5e-5 if n == 50 else 1e-4, t_end=0.02, record_every=10))
+        r = rollout(model, 60.0, SimSettings(dt=5e-5 if n == 50 else 1e-4, t_end=0.02, record_every=10,
+                                             scheme="variational"))
         assert np.all(np.isfinite(r.q))
     json.dumps(man)
+
+
+def test_markers_anywhere_with_dropped_frames(sim, tmp_path):
+    """Eight markers off the model grid (no base marker), 5 % of the rows dropped and one marker
+    occluded for 40 ms: the GP prefilter rebuilds the state on the model's own grid (theta
+    within the shear-free reconstruction's error of the simulator's), the fd prefilter, which
+    needs raw nodal positions, is refused with a named error, and crgpr learn runs end to end
+    and records the markers it saw."""
+    from crgpr.discovery.kinematics import marker_positions
+
+    P = sim.params
+    s_m = np.array([0.04, 0.1, 0.17, 0.23, 0.29, 0.36, 0.43, 0.5])
+    xy = marker_positions(sim.q, s_m, P)
+    rng = np.random.default_rng(3)
+    T, S = np.meshgrid(sim.t, s_m, indexing="ij")
+    df = pd.DataFrame({"t": T.ravel(), "s": S.ravel(), "x": xy[..., 0].ravel(), "y": xy[..., 1].ravel()})
+    df.loc[(df["s"] == 0.29) & df["t"].between(0.2, 0.24), ["x", "y"]] = np.nan
+    df = df.drop(index=rng.choice(len(df), size=len(df) // 20, replace=False))
+    df = df.sample(frac=1.0, random_state=0)  # rows in any order
+    meas = validate_frame(df, "markers", P.L0, P.ds, SCREEN)
+    arr, rep = camera.positions_to_state(meas, P, "gp", SETTINGS, seed=1)
+    assert rep["markers"]["n_markers"] == 8 and max(rep["markers"]["missing_fraction"]) > 0.05
+    idx = np.searchsorted(sim.t, arr["t"] - 1e-12)
+    th_err = arr["theta"][:, 1:] - sim.q[idx, 1:, 2]
+    assert np.sqrt(np.mean(th_err**2)) < 0.02
+    with pytest.raises(camera.MeasuredDataError, match="fd prefilter"):
+        camera.positions_to_state(meas, P, "fd", SETTINGS, seed=1)
+    path = tmp_path / "markers.parquet"
+    write_parquet(df, path)
+    man = learn(path, tmp_path / "m", load_config(SMOKE), "objective", "gp")
+    assert man["rod"]["N"] == load_config(SMOKE)["rod"]["N"] and man["state"]["markers"]["n_markers"] == 8
+    model, _ = load_learned(tmp_path / "m")
+    r = rollout(model, 60.0, SimSettings(dt=1e-4, t_end=0.02, record_every=10, scheme="variational"))
+    assert np.all(np.isfinite(r.q))

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from paper_rod import paper_rod, paper_sim
 
 from crgpr.cli import main
 from crgpr.config import ConfigError, load_config, rod_params, sim_settings
@@ -24,7 +25,7 @@ from crgpr.io import (
     write_npz,
     write_parquet,
 )
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import RodParams
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -120,12 +121,12 @@ def test_npz_refuses_object_arrays(tmp_path):
 
 
 def test_params_roundtrip():
-    p = RodParams(E=2.0e6, base_spring=3.0)
+    p = paper_rod(E=2.0e6, base_spring=3.0)
     assert RodParams.from_dict(p.to_dict()) == p
-    assert RodParams.from_dict(RodParams().to_dict()).clamped
+    assert RodParams.from_dict(paper_rod().to_dict()).clamped
     with pytest.raises(KeyError, match="unknown rod parameter"):
         RodParams.from_dict({"L": 1.0})
-    assert SimSettings().n_steps == 20000
+    assert paper_sim().n_steps == 20000
 
 
 def test_nan_in_the_config_file_is_rejected(tmp_path):
@@ -239,3 +240,12 @@ def test_code_version_marks_uncommitted_code(tmp_path):
     io = repo / "src" / "crgpr" / "io.py"
     io.write_text(io.read_text() + "\n# an uncommitted edit\n")
     assert version() == clean + ".dirty"
+
+
+@pytest.mark.parametrize("section", ["rod", "simulation"])
+def test_schema_defaults_are_the_config_values(section):
+    """The paper's rod and time grid live in config.yaml; the schema's defaults (used by
+    ``crgpr simulate`` without a config) must be the same values, key for key."""
+    from crgpr.config import schema_defaults
+
+    assert schema_defaults(section) == load_config(CONFIG)[section]

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paper_rod import paper_rod
 
 from crgpr import cli
 from crgpr.commands.discovery import case_seed, run_discovery
@@ -46,7 +47,7 @@ def test_library_has_the_nine_effects_with_units_and_places():
 
 def test_stiffness_scale_scales_EA_GA_EI_together():
     a = 0.3
-    nom, p = RodParams(), RodParams(stiffness_scale=a)
+    nom, p = paper_rod(), paper_rod(stiffness_scale=a)
     for k in ("EA", "GA", "EI"):
         assert getattr(p, k) == pytest.approx((1 + a) * getattr(nom, k))
     assert p.dt_stable() < nom.dt_stable()  # a stiffer rod needs a smaller step
@@ -57,7 +58,7 @@ def test_stiffness_scale_scales_EA_GA_EI_together():
 # --------------------------------------------------------------------------------------------
 def _exact_kinematics(pr: RodParams, t_end: float = 0.3):
     """Simulator states with accelerations from the model's own forces (no smoothing)."""
-    tr = simulate(85.0, pr, SimSettings(1e-4, t_end, 50))
+    tr = simulate(85.0, pr, SimSettings(1e-4, t_end, 50, scheme="variational"))
     v = velocities(tr)
     m_t, m_r = masses(pr)
     w = node_weights(pr.N) * pr.ds
@@ -84,7 +85,7 @@ def _exact_kinematics(pr: RodParams, t_end: float = 0.3):
     ("internal_damping", 2e-6), ("stiffness_scale", 0.3)])
 def test_cut_moment_residual_is_exact_for_the_discrete_model(name, value):
     """With the true effect the residual vanishes; each signature recovers its coefficient."""
-    nominal = RodParams(N=10)
+    nominal = paper_rod(N=10)
     true = nominal.replace(**{FIELD.get(name, name): value})
     tr, v, a = _exact_kinematics(true)
     theta_b = float(tr.q[0, 0, 2])
@@ -113,9 +114,9 @@ def test_cut_moment_residual_is_exact_for_the_discrete_model(name, value):
 def test_augmented_model_stays_passive(effects):
     """Energy balance H(t) + dissipated(t) = H(0) and dH/dt <= 0 (conservative terms in H,
     drag in R, tip weight in G u): no effect injects energy."""
-    pr = RodParams(N=10).replace(**effects)
+    pr = paper_rod(N=10).replace(**effects)
     dt = min(1e-4, 0.8 * pr.dt_stable())
-    tr = simulate(85.0, pr, SimSettings(dt, 0.3, max(1, round(2e-3 / dt))))
+    tr = simulate(85.0, pr, SimSettings(dt, 0.3, max(1, round(2e-3 / dt)), scheme="variational"))
     e = energy(tr)
     H, D = e["H"], tr.dissipated
     scale = float(np.ptp(e["gravity"])) + 1e-12
@@ -126,26 +127,26 @@ def test_augmented_model_stays_passive(effects):
 
 
 def test_conservative_effects_conserve_energy_without_damping():
-    pr = RodParams(N=10, zeta=0.0).replace(tip_mass=0.01, nonlinear_stiffness=0.01, kappa0=1.0,
+    pr = paper_rod(N=10, zeta=0.0).replace(tip_mass=0.01, nonlinear_stiffness=0.01, kappa0=1.0,
                                              stiffness_gradient=0.5, base_spring=0.3, stiffness_scale=0.3)
     dt = min(1e-4, 0.8 * pr.dt_stable())
-    tr = simulate(85.0, pr, SimSettings(dt, 0.3, 20))
+    tr = simulate(85.0, pr, SimSettings(dt, 0.3, 20, scheme="variational"))
     H = energy(tr)["H"]
     assert np.max(np.abs(H - H[0])) < 2e-3 * float(np.ptp(energy(tr)["gravity"]))
 
 
 def test_stable_dt_accounts_for_a_stiff_base_spring():
     """RodParams.dt_stable includes the base spring's row, and that bound is enough."""
-    pr = RodParams(N=10).replace(base_spring=20.0)
-    assert pr.dt_stable() < RodParams(N=10).dt_stable()
-    tr = simulate(85.0, pr, SimSettings(0.9 * pr.dt_stable(), 0.05, 10))
+    pr = paper_rod(N=10).replace(base_spring=20.0)
+    assert pr.dt_stable() < paper_rod(N=10).dt_stable()
+    tr = simulate(85.0, pr, SimSettings(0.9 * pr.dt_stable(), 0.05, 10, scheme="variational"))
     assert np.all(np.isfinite(tr.q))
 
 
 def test_kelvin_voigt_flow_is_exact_passive_and_stable_at_any_step():
     """P(h) is the exact flow: a semigroup, a contraction in the kinetic-energy norm, and the
     model's dt is stable even where the damping rate times dt is ~1e4 (c = 1e-2 N m^2 s)."""
-    pr = RodParams().replace(internal_damping=1e-2)
+    pr = paper_rod().replace(internal_damping=1e-2)
     _, m_r = masses(pr)
     free = free_mask(pr)[:, 2]
     P1 = kelvin_voigt_propagator(pr.internal_damping, pr.ds, m_r, free, 1e-5)
@@ -157,7 +158,7 @@ def test_kelvin_voigt_flow_is_exact_passive_and_stable_at_any_step():
     assert np.all(P1[0] == 0) and np.all(P1[:, 0] == 0)  # the clamp's rate stays 0
     lam_max = 4 * pr.internal_damping / (pr.rhoI * pr.ds**2)
     assert lam_max * 1e-4 > 1e3
-    tr = simulate(85.0, pr, SimSettings(1e-4, 0.3, 20))
+    tr = simulate(85.0, pr, SimSettings(1e-4, 0.3, 20, scheme="variational"))
     assert np.all(np.isfinite(tr.q))
     H = energy(tr)["H"]
     assert np.all(np.diff(H) <= 1e-9)
@@ -167,10 +168,10 @@ def test_kelvin_voigt_converges_with_the_time_step():
     """Strang splitting with the exact flow converges (measured order ~1.6 between dt = 1e-4 and
     5e-5 s: the stiff damping reduces the order of the splitting); at the model's step its
     error is a few mrad for c = 5e-5 N m^2 s (measured 4.8e-3 rad, N = 10)."""
-    pr = RodParams(N=10).replace(internal_damping=5e-5)
-    ref = simulate(85.0, pr, SimSettings(1.25e-5, 0.2, 320)).q[..., 2]
-    e1 = np.max(np.abs(simulate(85.0, pr, SimSettings(1e-4, 0.2, 40)).q[..., 2] - ref))
-    e2 = np.max(np.abs(simulate(85.0, pr, SimSettings(5e-5, 0.2, 80)).q[..., 2] - ref))
+    pr = paper_rod(N=10).replace(internal_damping=5e-5)
+    ref = simulate(85.0, pr, SimSettings(1.25e-5, 0.2, 320, scheme="variational")).q[..., 2]
+    e1 = np.max(np.abs(simulate(85.0, pr, SimSettings(1e-4, 0.2, 40, scheme="variational")).q[..., 2] - ref))
+    e2 = np.max(np.abs(simulate(85.0, pr, SimSettings(5e-5, 0.2, 80, scheme="variational")).q[..., 2] - ref))
     assert e1 < 1e-2
     assert 2.5 < e1 / e2 < 5.5
 

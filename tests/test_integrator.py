@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.physics.integrator import (
     MAX_SPEED,
@@ -16,12 +17,12 @@ from crgpr.physics.integrator import (
     run_hamiltonian,
     run_verlet,
 )
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, straight_rod
 from crgpr.physics.simulate import dissipation_coefficients, simulate
 
-P = RodParams(N=8)
-S = SimSettings(dt=1e-4, t_end=0.1, record_every=5)
+P = paper_rod(N=8)
+S = SimSettings(dt=1e-4, t_end=0.1, record_every=5, scheme="variational")
 
 
 def _analytic():
@@ -100,8 +101,9 @@ def test_every_path_stops_at_the_same_bound_and_keeps_the_good_records(path):
         if path == "compiled":  # a very soft rod whose tip is thrown outwards at 30 m/s
             v0 = np.zeros_like(q0)
             v0[-1, 0] = 30.0
-            simulate(0.0, RodParams(N=8, E=1.0, zeta=0.0), SimSettings(dt=1e-4, t_end=n_steps * 1e-4,
-                                                                       record_every=5), v0=v0)
+            simulate(0.0, paper_rod(N=8, E=1.0, zeta=0.0), SimSettings(dt=1e-4, t_end=n_steps * 1e-4,
+                                                                       record_every=5, scheme="variational"),
+                     v0=v0)
         elif path == "hamiltonian":
             run_hamiltonian(q0, np.zeros_like(q0), lambda q: push + gu * 0.0, lambda p: p / mass, free,
                             0.0, 1e-4, n_steps, 5, wds)

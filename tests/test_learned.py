@@ -8,13 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.learning.gradient_models import train_model
 from crgpr.learning.learned import LearnedRod, learned_energy, rollout, run_rollout
 from crgpr.learning.prefilter import fd_prefilter
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, node_weights, straight_rod
 from crgpr.physics.simulate import simulate
 
@@ -22,8 +23,8 @@ SMOKE = Path(__file__).parent / "smoke_config.yaml"
 
 
 def test_hamiltonian_variant_with_exact_hz_reproduces_simulate():
-    P = RodParams(N=8)
-    S = SimSettings(dt=1e-4, t_end=0.1, record_every=5)
+    P = paper_rod(N=8)
+    S = SimSettings(dt=1e-4, t_end=0.1, record_every=5, scheme="variational")
     ref = simulate(125.0, P, S)
     wds = node_weights(P.N) * P.ds
     mass = np.array([P.rhoA, P.rhoA, P.rhoI])
@@ -37,7 +38,7 @@ def test_hamiltonian_variant_with_exact_hz_reproduces_simulate():
 
 
 def test_divergence_reports_when_and_where():
-    P = RodParams(N=4)
+    P = paper_rod(N=4)
     wds = node_weights(P.N) * P.ds
 
     def force(q):
@@ -82,7 +83,8 @@ def test_objective_model_reproduces_its_training_trajectory(trained):
 def test_paper_model_runs_and_tracks_training_start(trained):
     cfg, traj, d = trained
     P, S = rod_params(cfg), sim_settings(cfg)
-    roll = rollout(LearnedRod.from_dir(d, "paper", P), 85.0, SimSettings(S.dt, 0.05, S.record_every))
+    roll = rollout(LearnedRod.from_dir(d, "paper", P), 85.0,
+                   SimSettings(S.dt, 0.05, S.record_every, scheme="variational"))
     n = roll.t.size
     err = roll.q[:, 1:, 2] - traj.q[:n, 1:, 2]
     assert np.all(np.isfinite(roll.q))

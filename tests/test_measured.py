@@ -9,21 +9,22 @@ import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
+from paper_rod import paper_rod
 
 from crgpr.discovery.kinematics import marker_matrix, node_angles, segment_angles, smooth_kinematics
 from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured, validate_frame
 from crgpr.discovery.synthetic import camera_frame
 from crgpr.io import write_parquet
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, velocities
 
-ROD = RodParams(N=10)
+ROD = paper_rod(N=10)
 ST = ScreenSettings(min_rate_hz=200.0, min_samples=20, outlier_k=8.0, outlier_min_m=5e-3, geometry_tol=0.15)
 
 
 @pytest.fixture(scope="module")
 def traj():
-    return simulate(85.0, ROD, SimSettings(dt=1e-4, t_end=0.4, record_every=50))
+    return simulate(85.0, ROD, SimSettings(dt=1e-4, t_end=0.4, record_every=50, scheme="variational"))
 
 
 def _frame(traj, noise=0.0, seed=0, **camera):

@@ -5,15 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from paper_rod import paper_rod
 
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
 from crgpr.report.metrics import ACCURACY_COLUMNS, accuracy, accuracy_table, table1, table4
 
 
 @pytest.fixture(scope="module")
 def gt():
-    return trajectory_frame(simulate(60.0, RodParams(N=6), SimSettings(dt=1e-4, t_end=0.05, record_every=10)))
+    return trajectory_frame(simulate(60.0, paper_rod(N=6),
+                                     SimSettings(dt=1e-4, t_end=0.05, record_every=10, scheme="variational")))
 
 
 def test_identical_rollout_is_perfect(gt):

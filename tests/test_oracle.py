@@ -9,15 +9,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from paper_rod import paper_rod
 
 from crgpr.learning import features as ft
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.learning.oracle import oracle_components
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import variational_derivative
 from crgpr.physics.simulate import simulate
 
-P = RodParams(N=10)
+P = paper_rod(N=10)
 
 
 def _random_state(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -64,8 +65,8 @@ def test_theta_oracle_exact_on_uniform_arc(gamma):
 
 def test_all_oracle_rollout_tracks_ground_truth():
     """The oracle model, integrated like any learned rod, stays close to the simulator."""
-    p = RodParams(N=10)
-    s = SimSettings(dt=1e-4, t_end=0.1, record_every=10)
+    p = paper_rod(N=10)
+    s = SimSettings(dt=1e-4, t_end=0.1, record_every=10, scheme="variational")
     gt = simulate(100.0, p, s)
     tr = rollout(LearnedRod(oracle_components(p), "paper", p, None), 100.0, s)
     err = np.sqrt(np.mean((tr.q[..., 2] - gt.q[..., 2]) ** 2))

@@ -57,7 +57,7 @@ def test_paper_hyp_model_loads_and_rolls_out_on_smoke(tmp_path):
             assert meta["approx_error_vs_exact"]["rmse_over_target_std"] < 0.01
     model = LearnedRod.from_dir(tmp_path / "paper", "paper", P)
     assert model.components["dH_dtheta"].kind == "exact"
-    tr = rollout(model, 125.0, SimSettings(dt=1e-4, t_end=0.01, record_every=10))
+    tr = rollout(model, 125.0, SimSettings(dt=1e-4, t_end=0.01, record_every=10, scheme="variational"))
     assert tr.q.shape == (11, P.N + 1, 3) and np.all(np.isfinite(tr.q))
     # fitted models: inside the configured box; the LML table compares both on the same rows
     hb = cfg["gradient_models"]["hyper_bounds"]

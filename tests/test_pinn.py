@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from paper_rod import paper_rod
 
 from crgpr.baselines import pinn
 from crgpr.commands.pinn import pinn_rollout, pinn_train
@@ -63,7 +64,7 @@ def test_residual_vanishes_on_the_simulator_right_hand_side():
     the residual must be tiny compared with the size of the terms; a 10 % change of the momentum
     rate, or the paper's sign of the couple term, gives an O(1) residual.
     """
-    params = RodParams(N=800)
+    params = paper_rod(N=800)
     q, p, z_s, z_ss = _closed_form_state(params, math.radians(125))
     rate = _simulator_rate(q, p, params)
     r, z_t = _residual_of(q, p, rate, z_s, z_ss, params)
@@ -91,7 +92,7 @@ def test_residual_vanishes_on_the_simulator_right_hand_side():
 
 def test_residual_sign_of_the_couple_is_variational():
     """With the paper's printed sign (+ (nu1 n_y - nu2 n_x) in dH/dtheta) the angular row fails."""
-    params = RodParams(N=800)
+    params = paper_rod(N=800)
     q, p, z_s, z_ss = _closed_form_state(params, math.radians(60))
     rate = _simulator_rate(q, p, params)
     sc = pinn.Scales.from_params(params)

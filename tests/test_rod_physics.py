@@ -9,18 +9,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from paper_rod import paper_rod, paper_sim
 
 from crgpr.physics.integrator import SimulationDiverged
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import internal_forces, strains, variational_derivative
 from crgpr.physics.simulate import energy, simulate
 
-PAPER = SimSettings(dt=1.0e-4, t_end=2.0, record_every=5)
+PAPER = SimSettings(dt=1.0e-4, t_end=2.0, record_every=5, scheme="variational")
 
 
 @pytest.fixture(scope="module")
 def paper_run():
-    return simulate(85.0, RodParams(), PAPER)
+    return simulate(85.0, paper_rod(), PAPER)
 
 
 def test_recorded_grid_matches_paper(paper_run):
@@ -32,7 +33,7 @@ def test_recorded_grid_matches_paper(paper_run):
 
 def test_energy_conserved_without_damping():
     """zeta = 0: relative drift of the total energy over 2 s stays below 1e-3."""
-    tr = simulate(85.0, RodParams(zeta=0.0), PAPER)
+    tr = simulate(85.0, paper_rod(zeta=0.0), PAPER)
     e = energy(tr)
     drift = np.abs(e["H"] - e["H"][0]).max() / abs(e["H"][0])
     assert drift < 1.0e-3
@@ -60,8 +61,8 @@ def test_clamped_base_held_exactly(paper_run):
 
 
 def _tip_resultant(N: int) -> tuple[float, float]:
-    p = RodParams(N=N)
-    tr = simulate(85.0, p, SimSettings(dt=2.0e-5, t_end=0.5, record_every=2500))
+    p = paper_rod(N=N)
+    tr = simulate(85.0, p, SimSettings(dt=2.0e-5, t_end=0.5, record_every=2500, scheme="variational"))
     st_ = strains(tr.q[-1], p)
     n = np.hypot(st_["n1"], st_["n2"])
     m = np.abs(st_["m"])
@@ -84,8 +85,8 @@ def test_static_cantilever_matches_euler_bernoulli():
 
     E is raised and g lowered so the deflection is 0.08 % of L (linear regime).
     """
-    p = RodParams(E=3.0e8, g=0.0981, zeta=1.0)
-    tr = simulate(0.0, p, SimSettings(dt=1.0e-5, t_end=1.5, record_every=5000))
+    p = paper_rod(E=3.0e8, g=0.0981, zeta=1.0)
+    tr = simulate(0.0, p, SimSettings(dt=1.0e-5, t_end=1.5, record_every=5000, scheme="variational"))
     w_eb = p.rhoA * p.g * p.L0**4 / (8.0 * p.EI)
     assert -tr.q[-1, -1, 1] == pytest.approx(w_eb, rel=0.02)
     # settled: the last two records agree to 1e-4 relative
@@ -96,7 +97,8 @@ def test_spatial_convergence_second_order():
     """Halving ds shrinks the change of theta(s, t) about fourfold (second-order scheme)."""
     runs = {}
     for N in (20, 40, 80):
-        tr = simulate(85.0, RodParams(N=N), SimSettings(dt=2.0e-5, t_end=0.5, record_every=250))
+        tr = simulate(85.0, paper_rod(N=N),
+                      SimSettings(dt=2.0e-5, t_end=0.5, record_every=250, scheme="variational"))
         runs[N] = tr.q[:, :: N // 10, 2]  # theta at s = 0, 0.05, ..., 0.5 m
     d1 = np.abs(runs[40] - runs[20]).max()
     d2 = np.abs(runs[80] - runs[40]).max()
@@ -105,15 +107,15 @@ def test_spatial_convergence_second_order():
 
 
 def test_deterministic():
-    a = simulate(125.0, RodParams(), SimSettings(t_end=0.5))
-    b = simulate(125.0, RodParams(), SimSettings(t_end=0.5))
+    a = simulate(125.0, paper_rod(), paper_sim(t_end=0.5))
+    b = simulate(125.0, paper_rod(), paper_sim(t_end=0.5))
     assert np.array_equal(a.q, b.q) and np.array_equal(a.p, b.p)
 
 
 def test_divergence_is_an_error_not_nans():
-    p = RodParams()
+    p = paper_rod()
     with pytest.raises(SimulationDiverged, match="diverged at t ="):
-        simulate(85.0, p, SimSettings(dt=3.0 * p.dt_stable(), t_end=0.2))
+        simulate(85.0, p, paper_sim(dt=3.0 * p.dt_stable(), t_end=0.2))
 
 
 @settings(max_examples=25, deadline=None)
@@ -125,7 +127,7 @@ def test_divergence_is_an_error_not_nans():
 )
 def test_forces_are_minus_energy_gradient(theta, stretch, shear, curv):
     """Property: nodal forces are exactly -dV/dq (finite-difference check on random states)."""
-    p = RodParams(N=6)
+    p = paper_rod(N=6)
     rng = np.random.default_rng(0)
     s = p.s
     th = theta + curv * s + 0.01 * rng.standard_normal(s.size)
@@ -146,7 +148,7 @@ def test_forces_are_minus_energy_gradient(theta, stretch, shear, curv):
 
 def test_unstrained_straight_rod_has_no_internal_force():
     """Unstrained rod: zero internal force; H_z momenta rows are p / (rho A), p / (rho I)."""
-    p = RodParams()
+    p = paper_rod()
     from crgpr.physics.rod import straight_rod
 
     q = straight_rod(math.radians(60), p)

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from paper_rod import paper_rod
 
 from crgpr.gp import KernelMean, Table1D, fit_gp, load_evaluator
 from crgpr.gp.sampling import CompressedSamples, exact_posterior, sparse_posterior, spec_from_gp
 from crgpr.learning.gradient_models import FEATURE_NAMES, MOMENTUM_MODELS, fit_model
 from crgpr.learning.learned import LearnedRod, rollout
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate
 from crgpr.uq.calibration import model_features, true_targets
 from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, expected_coverage, summary_rows
@@ -116,8 +117,8 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
 # the sampled LearnedRod through the mean models' rollout
 
 
-PARAMS = RodParams(N=6)
-SHORT = SimSettings(dt=1e-4, t_end=0.03, record_every=10)
+PARAMS = paper_rod(N=6)
+SHORT = SimSettings(dt=1e-4, t_end=0.03, record_every=10, scheme="variational")
 
 
 @pytest.fixture(scope="module")
@@ -125,7 +126,7 @@ def model_dir(tmp_path_factory) -> Path:
     """The nine gradient models (gradient_models.fit_model: the real fit and rollout
     approximation) trained on the analytic targets of a short 85 deg run of a 6-segment rod."""
     out = tmp_path_factory.mktemp("models")
-    traj = simulate(85.0, PARAMS, SimSettings(dt=1e-4, t_end=0.4, record_every=40))
+    traj = simulate(85.0, PARAMS, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
     center = 0.5 * float(traj.q[:, 1:, 2].min() + traj.q[:, 1:, 2].max())
     feats = model_features(traj.q, traj.p, PARAMS, center)
     truth = true_targets(traj.q, traj.p, PARAMS)
@@ -250,8 +251,8 @@ def test_true_targets_match_the_rod_forces() -> None:
     from crgpr.learning import features as ft
     from crgpr.physics.rod import internal_forces, node_weights
 
-    params = RodParams(N=8)
-    traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100))
+    params = paper_rod(N=8)
+    traj = simulate(125.0, params, SimSettings(dt=1e-4, t_end=0.05, record_every=100, scheme="variational"))
     tt = true_targets(traj.q, traj.p, params)
     wds = node_weights(params.N) * params.ds
     F = internal_forces(traj.q[-1], params, float(traj.q[0, 0, 2]))[0] / wds[:, None]

@@ -35,6 +35,13 @@ def schema() -> dict[str, Any]:
     return yaml.safe_load(text)
 
 
+def schema_defaults(section: str) -> dict[str, Any]:
+    """The schema's ``default`` of every key of a config ``section`` that declares one (the
+    paper's rod and time grid, Table I and Sec. IV; equal to config.yaml's, checked by a test)."""
+    props = schema()["properties"][section]["properties"]
+    return {k: v["default"] for k, v in props.items() if "default" in v}
+
+
 def schema_path() -> Path:
     return Path(str(resources.files("crgpr").joinpath("schemas/config.schema.yaml")))
 
@@ -203,7 +210,7 @@ def rod_params(cfg: dict[str, Any]) -> RodParams:
 def sim_settings(cfg: dict[str, Any]) -> SimSettings:
     s = cfg["simulation"]
     return SimSettings(dt=float(s["dt_s"]), t_end=float(s["t_end_s"]),
-                       record_every=int(s["record_every"]))
+                       record_every=int(s["record_every"]), scheme=str(s["scheme"]))
 
 
 def parse_set(items: list[str]) -> dict[str, Any]:
@@ -253,24 +260,25 @@ def _check_effects(effects: dict[str, Any], source: str) -> None:
 
 def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: float | None = None,
                 t_end: float | None = None, record_every: int | None = None,
-                base: str = "defaults") -> tuple[RodParams, SimSettings]:
+                base: str = "defaults", scheme: str | None = None) -> tuple[RodParams, SimSettings]:
     """Rod parameters and time grid from a config's ``rod``/``simulation`` sections plus
     command-line overrides, validated by the config file's schema and checks.
 
     ``rod`` and ``sim`` are the sections (``simulation`` keys ``dt_s``, ``t_end_s``,
-    ``record_every``); ``base`` names where they came from, for the messages. An option
+    ``record_every``, ``scheme``); ``base`` names where they came from, for the messages. An option
     given as 0 is a value (and rejected), not "use the config".
     """
     given = [f"--set {x}" for x in sets]
     given += [f"{flag} {v:g}" for flag, v in (("--dt", dt), ("--t-end", t_end),
                                                ("--record-every", record_every)) if v is not None]
+    given += [f"--scheme {scheme}"] if scheme is not None else []
     source = f"{base} with {' '.join(given)}" if given else base
     overrides = parse_set(sets)
     rod_keys = set(schema()["properties"]["rod"]["properties"])
     rod = {**rod, **{k: v for k, v in overrides.items() if k in rod_keys}}
     effects = {k: v for k, v in overrides.items() if k not in rod_keys}
     sim = dict(sim)
-    for key, v in (("dt_s", dt), ("t_end_s", t_end), ("record_every", record_every)):
+    for key, v in (("dt_s", dt), ("t_end_s", t_end), ("record_every", record_every), ("scheme", scheme)):
         if v is not None:
             sim[key] = v
     validate_section("rod", rod, source)
@@ -282,4 +290,4 @@ def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: f
         raise ConfigError(f"{source}: rod: {exc}") from exc
     check_time_grid(params, sim, source)
     return params, SimSettings(dt=float(sim["dt_s"]), t_end=float(sim["t_end_s"]),
-                               record_every=int(sim["record_every"]))
+                               record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))

@@ -55,8 +55,8 @@ def model_params(path: str | Path, cfg: dict[str, Any]) -> RodParams:
     """The model's rod: ``rod`` of the config on the file's node grid.
 
     A file with a ``node`` column puts its markers at s = node * ds with N = its largest
-    node (the camera's grid, ds = L0 / N); a file with ``s`` keeps the config's N, and its
-    markers must then lie on that grid (``learning.camera.check_node_grid``).
+    node (the camera's grid, ds = L0 / N); a file with ``s`` (markers anywhere) keeps the
+    config's N, and the state is rebuilt on that grid (``learning.camera``).
     """
     params = rod_params(cfg)
     try:
@@ -168,7 +168,7 @@ def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None
     if t_end is not None and not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"--t-end {t_end}: must be a positive number of seconds")
     st = SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
-                     record_every=base.record_every)
+                     record_every=base.record_every, scheme=base.scheme)
     if st.dt >= params.dt_stable():
         raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
                           f"need < {params.dt_stable():.3g} s")

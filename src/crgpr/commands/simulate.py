@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params, schema, sim_settings
+from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params, schema_defaults, sim_settings
 from crgpr.io import write_parquet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import energy_frame, simulate, trajectory_frame
@@ -40,7 +40,7 @@ def write_ground_truth(theta0_deg: float, params: RodParams, settings: SimSettin
 
 
 def ground_truth(cfg: dict[str, Any], angle: int, out: str, energy_out: str) -> None:
-    """Rule ``ground_truth`` (config: ``rod``, ``simulation``; deterministic, no seed)."""
+    """Rule ``ground_truth`` (config: ``rod``, ``simulation`` incl. ``scheme``; deterministic, no seed)."""
     write_ground_truth(float(angle), rod_params(cfg), sim_settings(cfg), out, energy_out)
 
 
@@ -56,6 +56,8 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--t-end", type=float, help="simulated time [s]")
     p.add_argument("--dt", type=float, help="time step [s]")
     p.add_argument("--record-every", type=int, help="record every k-th step")
+    p.add_argument("--scheme", help="spatial discretisation: variational | collocated "
+                   "(config key simulation.scheme)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a rod parameter, e.g. --set E=2e6 (repeatable)")
     p.set_defaults(func=_cli)
@@ -66,12 +68,10 @@ def _cli(args: argparse.Namespace) -> None:
     if cfg_path:
         cfg = load_config(cfg_path)
         rod, sim, base = cfg["rod"], cfg["simulation"], str(cfg_path)
-    else:  # the paper's rod (RodParams' documented defaults), restricted to the config's keys
-        keys = schema()["properties"]["rod"]["properties"]
-        rod = {k: v for k, v in RodParams().to_dict().items() if k in keys}
-        d = SimSettings()
-        sim, base = {"dt_s": d.dt, "t_end_s": d.t_end, "record_every": d.record_every}, "the paper's defaults"
-    params, settings = cli_rod_sim(rod, sim, args.set, args.dt, args.t_end, args.record_every, base)
+    else:  # the paper's rod and time grid: the config schema's defaults (= config.yaml's)
+        rod, sim, base = schema_defaults("rod"), schema_defaults("simulation"), "the paper's defaults"
+    params, settings = cli_rod_sim(rod, sim, args.set, args.dt, args.t_end, args.record_every, base,
+                                   args.scheme)
     if not math.isfinite(args.theta0):
         raise ConfigError(f"--theta0 {args.theta0}: must be a finite angle [deg]")
     write_ground_truth(args.theta0, params, settings, args.out, args.energy_out)

@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 def _sim(simulation: Mapping[str, Any]) -> SimSettings:
     return SimSettings(dt=float(simulation["dt_s"]), t_end=float(simulation["t_end_s"]),
-                       record_every=int(simulation["record_every"]))
+                       record_every=int(simulation["record_every"]), scheme=str(simulation["scheme"]))
 
 
 def theta_center(model_jsons: Sequence[str | Path], features: str) -> float | None:

@@ -31,7 +31,7 @@ def aligned_settings(params: RodParams, dt_max: float, period: float, n_samples:
     dt = min(dt_max, safety * params.dt_stable())
     every = max(1, math.ceil(period / dt - 1e-9))
     dt = period / every
-    return SimSettings(dt=dt, t_end=(n_samples - 1) * period, record_every=every)
+    return SimSettings(dt=dt, t_end=(n_samples - 1) * period, record_every=every, scheme="variational")
 
 
 class _PeriodicTipForce:

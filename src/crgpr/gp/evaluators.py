@@ -399,6 +399,8 @@ class Table1D:
         self.tx = np.asarray(x, dtype=float)
         self.ty = np.asarray(y, dtype=float)
         self.tslope = np.diff(self.ty) / np.diff(self.tx)
+        # the slope by searchsorted index: 0 left of the grid and right of it
+        self._slope_at = np.concatenate([[0.0], self.tslope, [0.0]])
 
     @classmethod
     def from_gp(cls, gp: GP, grid: np.ndarray) -> Table1D:
@@ -410,9 +412,7 @@ class Table1D:
 
     def slope(self, x: np.ndarray) -> np.ndarray:
         """Derivative of the interpolant (segment slope; 0 outside)."""
-        j = np.searchsorted(self.tx, x) - 1
-        inside = (j >= 0) & (j < self.tslope.size)
-        return np.where(inside, self.tslope[np.clip(j, 0, self.tslope.size - 1)], 0.0)
+        return self._slope_at[np.searchsorted(self.tx, x)]
 
 
 def load_model(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:

@@ -24,8 +24,10 @@ are trained exactly as from the simulator's full state:
 * frames within ``edge_trim_s`` of either end of the record are dropped (GP derivatives are
   least certain there), then at most ``n_t_out`` evenly spaced frames are kept.
 
-Nothing here assumes the data came from our simulator: the node grid is the camera's
-(N = measured segments, s_i = i L0 / N), the time grid the camera's.
+Nothing here assumes the data came from our simulator: with a ``node`` column the node grid is
+the camera's (N = measured segments, s_i = i L0 / N); with an ``s`` column (markers anywhere,
+``gp`` prefilter) the model keeps the config's grid and the state is rebuilt on it from the
+markers (``discovery.kinematics.smooth_kinematics``); the time grid is the camera's.
 """
 
 from __future__ import annotations
@@ -60,16 +62,17 @@ class LearnSettings:
                    n_t_out=int(c["n_t_out"]))
 
 
-def check_node_grid(meas: Measured, params: RodParams) -> None:
-    """Learning needs every node of the model grid (s_i = i ds) at every frame, none missing."""
+def check_node_grid(meas: Measured, params: RodParams, why: str = "crgpr learn") -> None:
+    """Raw positions used as nodal states (the ``fd`` prefilter, full-state files) need every
+    node of the model grid (s_i = i ds) at every frame, none missing."""
     if meas.s.size != params.N + 1 or not np.allclose(meas.s, params.s, atol=1e-9 * params.L0):
         raise MeasuredDataError(f"{meas.source}: markers at s = {np.round(meas.s, 6).tolist()} m; "
-                                f"crgpr learn needs one per node of the model grid "
+                                f"{why} needs one per node of the model grid "
                                 f"(N + 1 = {params.N + 1}, s = i ds)")
     bad = ~(np.isfinite(meas.x) & np.isfinite(meas.y))
     if bad.any():
         raise MeasuredDataError(f"{meas.source}: {int(bad.sum())} missing (NaN) or screened-out "
-                                "positions; crgpr learn needs complete frames")
+                                f"positions; {why} needs complete frames")
 
 
 def fd_kinematics(meas: Measured) -> Kinematics:
@@ -96,11 +99,16 @@ def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: in
 
 
 def kinematics(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
-    """Positions, velocities and accelerations (x, y, theta) by the chosen prefilter."""
-    check_node_grid(meas, params)
+    """Positions, velocities and accelerations (x, y, theta) by the chosen prefilter.
+
+    ``gp`` takes markers anywhere along the rod (any number the loader accepts, base marker
+    optional) with dropped frames and occlusions, and returns the state on the model grid;
+    ``fd`` differentiates raw positions, so it needs a complete marker at every model node.
+    """
     if prefilter == "gp":
         return gp_kinematics(meas, params, st, seed)
     if prefilter == "fd":
+        check_node_grid(meas, params, "the fd prefilter (raw positions as nodal states)")
         return fd_kinematics(meas)
     raise ValueError(f"unknown prefilter {prefilter!r}; expected one of {PREFILTERS}")
 
@@ -159,7 +167,7 @@ def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: Le
     if not all(np.all(np.isfinite(v)) for v in arr.values()):
         raise ValueError(f"{meas.source}: the derived state has non-finite values")
     report = {"prefilter": prefilter, "n_frames": int(meas.t.size), "n_frames_used": int(idx.size),
-              "rate_hz": meas.rate_hz, "n_nodes": int(meas.x.shape[1]),
+              "rate_hz": meas.rate_hz, "n_nodes": int(params.N + 1), "markers": meas.summary(),
               "noise_std_m_estimated": None if np.isnan(kin.noise_std_m) else float(kin.noise_std_m),
               "edge_trim_s": st.edge_trim_s}
     return arr, report

@@ -136,10 +136,16 @@ class LearnedRod:
         return self.internal(q) + self.gu
 
     def velocity(self, p: np.ndarray) -> np.ndarray:
-        return np.stack([self.hp[k](p[..., k]) for k in range(3)], axis=-1)
+        out = np.empty(p.shape)
+        for k in range(3):
+            out[..., k] = self.hp[k](p[..., k])
+        return out
 
     def velocity_slope(self, p: np.ndarray) -> np.ndarray:
-        return np.stack([self.hp[k].slope(p[..., k]) for k in range(3)], axis=-1)
+        out = np.empty(p.shape)
+        for k in range(3):
+            out[..., k] = self.hp[k].slope(p[..., k])
+        return out
 
     def hz(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
         """H_z_hat (..., N+1, 6) per unit length."""

@@ -3,6 +3,8 @@
 Public API:
 * ``RodParams``, ``SimSettings``: the rod's parameters (Table I) and the time grid;
 * ``rod``: the variational discretisation (strains, resultants, ``variational_derivative``);
+* ``collocated``: the collocated nodal finite-difference force kernels (config key
+  ``simulation.scheme``; ``SCHEMES``), integrated by the same compiled kernel;
 * ``integrator``: the one Stormer-Verlet scheme with Strang-split dissipation (``run_verlet``
   and its forms ``run_hamiltonian``, ``run_generic``, compiled ``run_rod``) and the one
   divergence policy (``diverged_nodes``, ``MAX_SPEED``, ``REACH``);
@@ -20,7 +22,7 @@ from crgpr.physics.integrator import (
     run_rod,
     run_verlet,
 )
-from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.params import SCHEMES, RodParams, SimSettings
 from crgpr.physics.rod import (
     STATE_NAMES,
     free_mask,
@@ -38,7 +40,8 @@ from crgpr.physics.simulate import (
 )
 
 __all__ = [
-    "MAX_SPEED", "REACH", "STATE_NAMES", "TRAJECTORY_COLUMNS", "Integration", "RodParams", "SimSettings",
+    "MAX_SPEED", "REACH", "SCHEMES", "STATE_NAMES", "TRAJECTORY_COLUMNS", "Integration", "RodParams",
+    "SimSettings",
     "SimulationDiverged", "Trajectory", "diverged_nodes", "free_mask", "masses", "node_weights",
     "run_generic", "run_hamiltonian", "run_rod", "run_verlet", "simulate", "straight_rod",
     "trajectory_frame", "trajectory_from_frame", "variational_derivative",

@@ -44,6 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from crgpr.physics.collocated import _collocated_forces, _nodal_forces
+from crgpr.physics.params import SCHEMES
 from crgpr.physics.rod import _internal_forces
 
 # A rod of length L released from rest cannot move its material points faster than about
@@ -143,12 +145,24 @@ def _kv_damp(v, m_r, P):
 
 
 @njit(cache=True)
+def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
+    """Elastic force kernel of the spatial scheme, index into ``SCHEMES`` (0: variational,
+    rod.py; 1: collocated, 2: collocated_nodal, collocated.py)."""
+    if scheme == 1:
+        return _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    if scheme == 2:
+        return _nodal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    return _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+
+
+@njit(cache=True)
 def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kappa0,
-                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv):
+                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv,
+                scheme):
     """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step."""
     n = q.shape[0]
     F = np.zeros((n, 3))
-    _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     diss = 0.0
     out_q[0] = q
     out_v[0] = v
@@ -167,7 +181,7 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             q[i, 0] += dt * v[i, 0]
             q[i, 1] += dt * v[i, 1]
             q[i, 2] += dt * v[i, 2]
-        _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+        _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
@@ -220,12 +234,15 @@ def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
 
 
 def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
-            length=None, kv: np.ndarray | None = None):
+            length=None, kv: np.ndarray | None = None, scheme: str = "variational"):
     """Integrate the analytic rod (compiled ``run_generic``). ``rod_args`` are the trailing
     arguments of the force kernel; ``grav_force`` the nodal y-force of gravity (-m_i g);
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
-    Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping).
-    Raises SimulationDiverged."""
+    Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
+    ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
+    rod.py; 'collocated' or 'collocated_nodal', collocated.py). Raises SimulationDiverged."""
+    if scheme not in SCHEMES:
+        raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")
@@ -236,7 +253,7 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     out_v = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     status = _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, *rod_args,
-                         dt, n_steps, every, reach, out_q, out_v, out_d, kv)
+                         dt, n_steps, every, reach, out_q, out_v, out_d, kv, SCHEMES.index(scheme))
     t = np.arange(n_rec) * dt * every
     if status >= 0:
         r = status // every
@@ -382,13 +399,17 @@ def run_hamiltonian(
         d = 1e-6 * np.maximum(np.abs(p), 1e-6)
         return (velocity(p + d) - velocity(p - d)) / (2 * d)
 
+    last: list[np.ndarray] = []  # [p1, H_p(p1)] of the previous damping half-step
+
     def damp(p: np.ndarray) -> tuple[np.ndarray, float]:
-        v0 = velocity(p)
+        # two damping half-steps meet between steps: the second's H_p(p1) is the next one's v0
+        v0 = last[1] if last and last[0] is p else velocity(p)
         sl = slope(p) * zeta
         small = np.abs(sl * h) < 1e-12
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
         p1 = p - fac * v0 * free
         v1 = velocity(p1)
+        last[:] = [p1, v1]
         return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,

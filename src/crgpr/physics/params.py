@@ -1,8 +1,9 @@
 """Physical and simulation parameters (paper Table I, Sec. IV).
 
-Symbols follow the paper; units are SI and stated next to each field. The extra
-fields after ``kappa0`` are the physical effects of the missing-physics workflow;
-their defaults switch them off, so the default ``RodParams()`` is the paper's rod.
+Symbols follow the paper; units are SI and stated next to each field. The rod's own values
+have no defaults here: they come from the config (``config.yaml``; the schema's defaults for
+``crgpr simulate`` without a config). The extra fields after ``kappa0`` are the physical
+effects of the missing-physics workflow; their defaults switch them off.
 """
 
 from __future__ import annotations
@@ -19,17 +20,17 @@ import numpy as np
 class RodParams:
     """Planar Cosserat rod parameters (paper Table I plus the choices it leaves out)."""
 
-    L0: float = 0.5  # rod length [m]
-    N: int = 25  # number of segments [-] (N + 1 nodes, node 0 clamped)
-    r: float = 0.01  # cross-section "radius" [m]; the paper's A = pi r^2 / 4
-    E: float = 3.0e6  # Young's modulus [Pa]
-    nu: float = 0.5  # Poisson ratio [-] (not given in the paper: our choice)
-    rho: float = 1000.0  # density [kg/m^3]
-    zeta: float = 1.0e-3  # damping coefficient of R = diag(0, zeta I3) [N s/m^2]
-    g: float = 9.81  # gravity [m/s^2], acting in -y
-    nu1_0: float = 1.0  # intrinsic stretch [-]
-    nu2_0: float = 0.0  # intrinsic shear [-]
-    kappa0: float = 0.0  # intrinsic (rest) curvature [1/m], uniform
+    L0: float  # rod length [m]
+    N: int  # number of segments [-] (N + 1 nodes, node 0 clamped)
+    r: float  # cross-section "radius" [m]; the paper's A = pi r^2 / 4
+    E: float  # Young's modulus [Pa]
+    nu: float  # Poisson ratio [-] (not given in the paper: our choice)
+    rho: float  # density [kg/m^3]
+    zeta: float  # damping coefficient of R = diag(0, zeta I3) [N s/m^2]
+    g: float  # gravity [m/s^2], acting in -y
+    nu1_0: float  # intrinsic stretch [-]
+    nu2_0: float  # intrinsic shear [-]
+    kappa0: float  # intrinsic (rest) curvature [1/m], uniform
     # --- effects for the missing-physics workflow (all off by default) ---
     viscous_drag: float = 0.0  # external force -c v per length, c [N s/m^2]
     air_drag: float = 0.0  # external force -c |v| v per length, c [N s^2/m^3]
@@ -141,13 +142,26 @@ class RodParams:
         return 2.0 / self.max_frequency()
 
 
+# Spatial discretisations of the rod (config key simulation.scheme): the variational one of
+# rod.py (the project's ground truth), the collocated nodal finite differences of
+# collocated.py (the stencils of the paper's GPR 3 inputs), and its fully nodal variant
+# (summation-by-parts, but with a zero-energy odd-even mode; see collocated.py).
+SCHEMES: tuple[str, ...] = ("variational", "collocated", "collocated_nodal")
+
+
 @dataclass(frozen=True)
 class SimSettings:
-    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples)."""
+    """Time integration settings (paper Sec. IV: dt = 1e-4 s, T = 2 s, 4001 samples) and the
+    spatial scheme (``SCHEMES``; the paper does not state its own, 'variational' is ours)."""
 
-    dt: float = 1.0e-4  # time step [s]
-    t_end: float = 2.0  # final time [s]
-    record_every: int = 5  # record every k-th step
+    dt: float  # time step [s]
+    t_end: float  # final time [s]
+    record_every: int  # record every k-th step
+    scheme: str  # spatial discretisation of the elastic forces (SCHEMES)
+
+    def __post_init__(self) -> None:
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"unknown spatial scheme {self.scheme!r}; expected one of {SCHEMES}")
 
     @property
     def n_steps(self) -> int:

@@ -47,7 +47,8 @@ import math
 import numpy as np
 from numba import njit
 
-from crgpr.physics.params import RodParams
+from crgpr.physics.collocated import _collocated_forces, _nodal_forces
+from crgpr.physics.params import SCHEMES, RodParams
 
 STATE_NAMES: tuple[str, ...] = ("x", "y", "theta", "p_x", "p_y", "p_theta")
 
@@ -124,13 +125,20 @@ def free_mask(params: RodParams) -> np.ndarray:
     return free
 
 
-def internal_forces(q: np.ndarray, params: RodParams, theta_base: float = 0.0) -> tuple[np.ndarray, float]:
+def internal_forces(q: np.ndarray, params: RodParams, theta_base: float = 0.0,
+                    scheme: str = "variational") -> tuple[np.ndarray, float]:
     """Nodal generalised elastic forces -dV/dq (N+1, 3) and the elastic energy V [J].
 
-    ``theta_base`` is the spring's rest angle when ``params.base_spring`` is finite.
+    ``theta_base`` is the spring's rest angle when ``params.base_spring`` is finite;
+    ``scheme``: 'variational' (this module), 'collocated' (collocated.py; V is this module's) or
+    'collocated_nodal' (collocated.py; V is its own V_c).
     """
+    if scheme not in SCHEMES:
+        raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
+    kernel = {"variational": _internal_forces, "collocated": _collocated_forces,
+              "collocated_nodal": _nodal_forces}[scheme]
     F = np.empty_like(q, dtype=float)
-    V = _internal_forces(
+    V = kernel(
         np.ascontiguousarray(q, dtype=float), params.ds, params.EA, params.GA, segment_EI(params),
         params.kappa0, params.nu1_0, params.nu2_0, params.nonlinear_stiffness,
         params.base_spring, theta_base, F,

@@ -42,6 +42,7 @@ class Trajectory:
     p: np.ndarray
     params: RodParams
     dissipated: np.ndarray | None = None
+    scheme: str = "variational"  # spatial scheme that produced it (its energy's V)
 
     @property
     def z(self) -> np.ndarray:
@@ -75,7 +76,9 @@ def simulate(
     """Simulate the rod released at rest, straight, at theta0 [deg] from +x (clamped base).
 
     ``q0``/``v0`` (N+1, 3) override the initial configuration / velocities (the base node
-    stays where ``q0`` puts it). Raises ``SimulationDiverged`` if the run blows up.
+    stays where ``q0`` puts it). ``settings.scheme`` picks the spatial discretisation of the
+    elastic forces (rod.py or collocated.py); masses, damping, gravity and the integrator are
+    the same for both. Raises ``SimulationDiverged`` if the run blows up.
     """
     th0 = math.radians(theta0_deg)
     q_init = straight_rod(th0, params) if q0 is None else np.array(q0, dtype=float)
@@ -89,12 +92,13 @@ def simulate(
         settings.record_every,
         kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
                                    0.5 * settings.dt),
+        scheme=settings.scheme,
     )
     p = out.v.copy()
     p[..., 0] *= params.rhoA
     p[..., 1] *= params.rhoA
     p[..., 2] *= params.rhoI
-    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated)
+    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated, settings.scheme)
 
 
 def velocities(traj: Trajectory) -> np.ndarray:
@@ -106,6 +110,8 @@ def velocities(traj: Trajectory) -> np.ndarray:
 def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     """Total energy H (kinetic + elastic + gravity + base spring) and dissipation rate per t.
 
+    The elastic energy is that of the trajectory's own scheme (rod.py's V, or collocated.py's V_c).
+
     dissipation_rate = H_z^T R H_z integrated over the rod (paper Sec. V, E(t)), with the
     drag effects and the Kelvin-Voigt term sum_j ds c kappa_dot_j^2 added when present.
     """
@@ -115,7 +121,7 @@ def energy(traj: Trajectory) -> dict[str, np.ndarray]:
     ke = 0.5 * (m_t * (v[..., 0] ** 2 + v[..., 1] ** 2) + m_r * v[..., 2] ** 2).sum(axis=-1)
     pe_g = (m_t * pr.g * traj.q[..., 1]).sum(axis=-1)
     th_base = float(traj.q[0, 0, 2])
-    ve = np.array([internal_forces(q, pr, th_base)[1] for q in traj.q])
+    ve = np.array([internal_forces(q, pr, th_base, traj.scheme)[1] for q in traj.q])
     wds = node_weights(pr.N) * pr.ds
     speed2 = v[..., 0] ** 2 + v[..., 1] ** 2  # clamped DOFs have v = 0
     rate = ((pr.zeta + pr.viscous_drag) * wds * speed2).sum(axis=-1)
