@@ -2,6 +2,7 @@
 
     snakemake -j2 all                     # the paper, with config.yaml
     snakemake -j2 all --configfile tests/smoke_config.yaml    # tiny smoke run
+    snakemake -j2 sweeps                  # studies beyond the budget of `all`
 
 Rules live in workflow/rules/<stage>.smk, one file per pipeline stage; rule X runs
 workflow/scripts/X.py, which calls crgpr.commands.<stage>.X. Each rule declares the config
@@ -35,9 +36,18 @@ include: "workflow/rules/discovery.smk"
 include: "workflow/rules/camera.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/oracle.smk"
+include: "workflow/rules/variant_paths.smk"
+include: "workflow/rules/variants.smk"
 
 
 rule all:
     default_target: True
     input:
         ALL_TARGETS,
+
+
+# Studies beyond the budget of `all` (the camera noise ablation, the CR-GPR sensitivity table):
+# `snakemake -j2 sweeps`.
+rule sweeps:
+    input:
+        SWEEP_TARGETS,

@@ -89,7 +89,7 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     acc = read_parquet(res / "metrics" / "accuracy.parquet",
                        ["method", "theta0_deg", "rmse_theta", "r2_theta", "tip_rmse_over_L", "group_nrmse"])
     assert {"cr_gpr", "cr_gpr_fd", "cr_gpr_objective", "blackbox_gp", "pinn_physics", "pinn_data_1",
-            "pinn_data_8", "cr_gpr_objective_camera"} <= set(acc["method"])
+            "pinn_data_8", "cr_gpr_objective_camera", "cr_gpr_collocated"} <= set(acc["method"])
     assert set(acc["theta0_deg"]) == {60.0, 125.0}
     assert np.all(acc["rmse_theta"] >= 0)
     tables = res / "tables"
@@ -99,6 +99,7 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         "uq_coverage.csv": ["method", "theta0_deg", "level", "theta_coverage", "expected_coverage"],
         "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
         "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
+        "crgpr_sensitivity.csv": ["variant", "method", "overlay", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
         "oracle_exact_gap.csv": ["theta0_deg", "dtc_minus_exact_over_std", "exact_rmse_over_std"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",

@@ -35,6 +35,11 @@ ALL_TARGETS = []
 # Rollout methods whose results/rollouts/{method}/{angle}.parquet the metrics rule gathers;
 # each stage that writes rollouts extends it (report.smk's metrics rule reads it lazily).
 ROLLOUT_METHODS = []
+# Methods scored by a pipeline variant against its own ground truth (variants.smk): method ->
+# the variant's accuracy file, whose rows the metrics rule adds under that name.
+VARIANT_METHODS = {}
+# Final targets of `snakemake sweeps` (Snakefile): studies that do not fit the budget of `all`.
+SWEEP_TARGETS = []
 
 
 # Trajectory UQ (uq.smk, paper.smk): the gradient models and sample files of a UQ method.

@@ -11,6 +11,7 @@ rule metrics:
         gt=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
         rollouts=lambda wc: expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
                                    method=ROLLOUT_METHODS, angle=config["angles"]["test_deg"]),
+        variant_accuracy=lambda wc: list(VARIANT_METHODS.values()),
     output:
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
         table1=report(
@@ -25,6 +26,7 @@ rule metrics:
         ),
     params:
         methods=lambda wc: list(ROLLOUT_METHODS),
+        variant_methods=lambda wc: list(VARIANT_METHODS),
         angles=list(config["angles"]["test_deg"]),
         cfg=cfg_params("rod.L0", "rollouts.table1_method", "rollouts.ablation_methods"),
     log:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet, write_text
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
@@ -28,10 +29,13 @@ log = logging.getLogger(__name__)
 
 
 def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
-            rollouts: list[str], out: str, table1_out: str, table4_out: str) -> None:
+            rollouts: list[str], variant_accuracy: dict[str, str], out: str, table1_out: str,
+            table4_out: str) -> None:
     """Rule ``metrics``: accuracy.parquet of every method and angle, the paper's Tables III and V.
 
     ``ground_truth`` has one file per angle, ``rollouts`` one per (method, angle), method-major.
+    ``variant_accuracy``: method -> a pipeline variant's accuracy file (rule ``variant_metrics``,
+    scored against the variant's own ground truth); its rows join under that method name.
     """
     n = len(angles)
     if len(ground_truth) != n or len(rollouts) != len(methods) * n:
@@ -41,6 +45,13 @@ def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_t
              for i, m in enumerate(methods) for j, a in enumerate(angles)]
     acc = metrics_mod.accuracy_table(pairs, float(cfg["rod"]["L0"]))
     provenance = {p: read_metadata(p).get("code_version") for _, _, _, p in pairs if Path(p).exists()}
+    cols = list(metrics_mod.ACCURACY_COLUMNS)
+    for method, path in variant_accuracy.items():
+        rows = read_parquet(path, required=cols).assign(method=method)
+        acc = pd.concat([acc, rows[rows["theta0_deg"].isin([float(a) for a in angles])][cols]],
+                        ignore_index=True)
+        provenance[path] = read_metadata(path).get("code_version")
+    methods = [*methods, *variant_accuracy]
     write_parquet(acc, out, {"kind": "accuracy", "methods": methods, "angles": angles,
                              "definitions": metrics_mod.__doc__, "inputs": provenance})
     rc = cfg["rollouts"]
