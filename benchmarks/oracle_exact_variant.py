@@ -51,7 +51,7 @@ def main() -> None:
     if a.gap_only:
         return
     rows = oa.run_variant("exact_dH_dtheta", ("dH_dtheta",), {"dH_dtheta": oa.Flat(ex)}, P, S, center,
-                          o["theta_closure"], gts, f"ExactMean on {idx.size} points")
+                          o["theta_closure"], gts, f"exact mean (KernelMean.exact) on {idx.size} points")
     df = pd.DataFrame(rows)
     print(df[["variant", "theta0_deg", "rmse_theta", "r2_theta", "status", "seconds_batch"]].to_string())
     print(f"mean rmse_theta {df['rmse_theta'].mean():.4f}")

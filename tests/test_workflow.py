@@ -133,6 +133,7 @@ def _smoke_with(tmp_path: Path, old: str, new: str) -> Path:
 
 N_GP_MODELS = 9  # the smoke config's gp-prefilter models: 6 paper + 3 objective
 N_FD_MODELS = 6  # cr_gpr_fd: the paper's six
+N_PAPER_HYP_MODELS = 6  # cr_gpr_paper_hyp: the paper's six with Table II hyperparameters
 DISCOVERY = {"discovery_data", "discovery_run", "discovery_summary"}
 UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
 
@@ -142,19 +143,23 @@ UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
     ("old", "new", "reruns", "untouched"),
     [
         # a gradient-model setting: every gradient GP and what uses them, nothing upstream
-        ("  n_hyper: 100\n  n_restarts: 1\n  inducing: 50", "  n_hyper: 120\n  n_restarts: 1\n  inducing: 50",
-         {"gradient_model": N_GP_MODELS + N_FD_MODELS, "rollout": 6, "table2": 1, "metrics": 1,
-          "baselines_table": 1, "uq_samples": 1, "paper_tables": 1},
+        # (the paper-hyperparameter models search nothing: they and their rollouts stay)
+        ("  n_hyper: 100\n  n_restarts: 1\n  hyper_bounds",
+         "  n_hyper: 120\n  n_restarts: 1\n  hyper_bounds",
+         {"gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0, "rollout": 6,
+          "table2": 1, "metrics": 1, "baselines_table": 1, "uq_samples": 1, "paper_tables": 1,
+          "paper_hyp_lml": 1},
          UPSTREAM | {"prefilter", "blackbox_train", "blackbox_rollout"}),
         # a setting of the GP prefilter: the gp branch only, not the finite-difference ablation
         ("hyper_points: 41", "hyper_points: 30",
-         {"prefilter": 1, "gradient_model": N_GP_MODELS, "blackbox_train": 1, "blackbox_rollout": 2,
-          "rollout": 4, "metrics": 1},
+         {"prefilter": 1, "gradient_model": N_GP_MODELS, "gradient_model_paper_hyp": N_PAPER_HYP_MODELS,
+          "blackbox_train": 1, "blackbox_rollout": 2, "rollout": 6, "metrics": 1},
          UPSTREAM),
         # the simulated time: every ground truth and everything downstream, not the discovery cases
         ("t_end_s: 0.2", "t_end_s: 0.25",
          {"ground_truth": 4, "pinn_train": 3, "pinn_rollout": 6, "prefilter": 2,
-          "gradient_model": N_GP_MODELS + N_FD_MODELS, "blackbox_train": 1, "rollout": 6, "metrics": 1},
+          "gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": N_PAPER_HYP_MODELS,
+          "blackbox_train": 1, "rollout": 8, "metrics": 1},
          DISCOVERY),
     ],
     ids=["gradient_models.n_hyper", "prefilter.hyper_points", "simulation.t_end_s"],

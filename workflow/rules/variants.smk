@@ -46,6 +46,7 @@ use rule gradient_model as variant_gradient_model with:
         code=code_closure("gradient_model.py"),
         prefiltered=lambda wc: v_prefilter(wc.variant, wc.prefilter,
                                            VARIANT_CFG[wc.variant]["angles"]["train_deg"]),
+        gt_tests=lambda wc: [v_ground_truth(wc.variant, a) for a in VARIANT_CFG[wc.variant]["angles"]["test_deg"]],
     output:
         npz=f"{VROOT}/{{variant}}/models/{{prefilter}}/{{model}}.npz",
         json=f"{VROOT}/{{variant}}/models/{{prefilter}}/{{model}}.json",

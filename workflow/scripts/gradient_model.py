@@ -3,4 +3,4 @@ from crgpr.commands.smk import run_rule
 
 run_rule(snakemake, gradient_model, cfg=snakemake.params.cfg, model=snakemake.wildcards.model,
          prefilter_method=snakemake.wildcards.prefilter, prefiltered=snakemake.input.prefiltered,
-         out_npz=snakemake.output.npz)
+         out_npz=snakemake.output.npz, gt_tests=list(snakemake.input.gt_tests))

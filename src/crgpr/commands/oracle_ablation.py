@@ -5,10 +5,10 @@ by ``learned.LearnedRod`` + ``integrator.run_hamiltonian`` on every test angle:
 * ``all_oracle``: every component is its oracle (``learning.oracle``: the constitutive law
   written in the same features);
 * ``learned_<c>``: component ``c`` is the fitted GP as the ``cr_gpr`` rollout evaluates it
-  (``gp.load_evaluator``, DTC), the other five are oracles;
+  (``gp.load_evaluator``: the model's saved rollout mean, exact or DTC), the other five are oracles;
 * ``all_learned``: the six fitted GPs (the ``cr_gpr`` model);
 * ``exact_dH_dtheta``: as ``learned_dH_dtheta`` but dH/dtheta is the EXACT posterior mean
-  (``gp.exact.ExactMean``, R&W eq. 2.41) of the fitted GP, its saved hyperparameters,
+  (``gp.KernelMean.exact``, R&W eq. 2.41) of the fitted GP, its saved hyperparameters,
   conditioned on a seeded subset of ``exact_subset`` training points (not the DTC mean).
 The angles of one variant are integrated as one batch (leading batch axis; a batch that
 diverges is rerun angle by angle and the diverged angles are recorded with NaN metrics).
@@ -34,8 +34,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import rod_params, sim_settings
-from crgpr.gp import GP, load_evaluator
-from crgpr.gp.exact import ExactMean
+from crgpr.gp import GP, KernelMean, load_evaluator
 from crgpr.io import read_parquet, write_csv
 from crgpr.learning import features as ft
 from crgpr.learning.learned import LearnedRod
@@ -61,7 +60,8 @@ def variants() -> dict[str, tuple[str, ...]]:
 EXACT_VARIANTS: dict[str, tuple[str, ...]] = {"exact_dH_dtheta": ("dH_dtheta",)}
 
 
-def exact_subset_mean(stem: str | Path, n_subset: int, seed: int, tol: float) -> tuple[ExactMean, np.ndarray]:
+def exact_subset_mean(stem: str | Path, n_subset: int, seed: int, tol: float
+                      ) -> tuple[KernelMean, np.ndarray]:
     """Exact posterior mean of the saved GP ``stem`` conditioned on a seeded subset of its data.
 
     Hyperparameters and standardisation are the saved ones; the subset is ``min(n_subset, n)``
@@ -74,7 +74,7 @@ def exact_subset_mean(stem: str | Path, n_subset: int, seed: int, tol: float) ->
     sub = GP(kernel=gp.kernel, ard=gp.ard, basis=gp.basis, sigma_f=gp.sigma_f, lengthscales=gp.lengthscales,
              sigma_n=gp.sigma_n, x_mean=gp.x_mean, x_scale=gp.x_scale, y_mean=gp.y_mean, y_scale=gp.y_scale,
              X=gp.X[idx], Y=gp.Y[idx], lml=float("nan"), info=dict(gp.info))
-    return ExactMean(sub, tol=tol), idx
+    return KernelMean.exact(sub, tol=tol), idx
 
 
 def _theta_states(gt: Trajectory, P: RodParams, every: int, center: float | None):
@@ -212,10 +212,11 @@ def oracle_ablation(cfg: dict[str, Any], theta_closure: str, model_dir: str, gt_
     sources = {**learned, "dH_dtheta": Flat(exact)}
     rows = []
     for variant, names in variants().items():
-        rows += run_variant(variant, names, learned, P, S, center, theta_closure, gts, "DTC (load_evaluator)")
+        rows += run_variant(variant, names, learned, P, S, center, theta_closure, gts,
+                            f"{learned['dH_dtheta'].comp.kind} mean (load_evaluator)")
     for variant, names in EXACT_VARIANTS.items():
         rows += run_variant(variant, names, sources, P, S, center, theta_closure, gts,
-                            f"ExactMean on {idx.size} seeded training points (seed {exact_seed})")
+                            f"exact mean on {idx.size} seeded training points (seed {exact_seed})")
     table = pd.DataFrame(rows)
     table["theta_closure"] = theta_closure
     write_csv(table, out_csv)

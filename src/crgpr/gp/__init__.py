@@ -4,12 +4,12 @@ Public API:
 * ``GP``, ``fit_gp``: exact GP with explicit basis, marginal-likelihood fit (``_gpr``);
 * ``smooth_series``: a 1-D Matern-5/2 smoother with analytic derivatives (the prefilter);
 * ``kernel_matrix``, ``basis_matrix_std``, ``GPError``;
-* evaluators of the posterior mean (``evaluators``): ``KernelMean`` (exact or DTC),
+* evaluators of the posterior mean (``evaluators``): ``KernelMean`` (the exact mean over all n
+  points with truncated kernel sums on a cell grid, ``exact_weights``; or the DTC mean),
   ``Table1D`` (1-D with slope), ``load_evaluator`` (from a saved model), the one compiled
   ``kernel_sum``;
 * sparse means (``sparse``): ``select_inducing``, ``dtc_fit``;
 * ``sampling``: posterior function samples (RFF, pathwise conditioning; paper Sec. III-B, RFF sampling).
-* ``exact``: ``ExactMean``, a fitted GP's exact posterior mean with truncated SE sums (oracle ablation).
 """
 
 from crgpr.gp._gpr import (
@@ -22,10 +22,11 @@ from crgpr.gp._gpr import (
     kernel_matrix,
     smooth_series,
 )
-from crgpr.gp.evaluators import KernelMean, Table1D, load_evaluator, load_model
+from crgpr.gp.evaluators import KernelMean, Table1D, cutoff_radius, exact_weights, load_evaluator, load_model
 from crgpr.gp.sparse import dtc_fit, select_inducing
 
 __all__ = [
-    "BASES", "GP", "GPError", "KERNELS", "KernelMean", "Table1D", "basis_matrix_std", "dtc_fit",
-    "fit_gp", "kernel_matrix", "load_evaluator", "load_model", "select_inducing", "smooth_series",
+    "BASES", "GP", "GPError", "KERNELS", "KernelMean", "Table1D", "basis_matrix_std", "cutoff_radius",
+    "dtc_fit", "exact_weights", "fit_gp", "kernel_matrix", "load_evaluator", "load_model", "select_inducing",
+    "smooth_series",
 ]

@@ -468,7 +468,9 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
            sigma_n_min: float | None = None, noise_var_min_std: float | None = None,
            n_restarts: int = 3, seed: int = 0, hyper_subset: int | None = None,
            standardise_y: bool = True, init: dict[str, Any] | None = None,
-           fixed: dict[str, Any] | None = None, maxiter: int = 200, factorise: bool = True) -> GP:
+           fixed: dict[str, Any] | None = None, maxiter: int = 200, factorise: bool = True,
+           ell_bounds: tuple[np.ndarray, np.ndarray] | None = None,
+           sigma_f_bounds: tuple[float, float] | None = None) -> GP:
     """Fit an exact GP by maximising the log marginal likelihood (R&W Sec. 2.7, eq. 2.45).
 
     X (n, d) or (n,); Y (n,) or (n, k) with k columns sharing the hyperparameters.
@@ -478,7 +480,10 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
     random subset of this many points (seeded), then condition on all points.
     ``fixed``: skip the optimisation and use these standardised hyperparameters
     ({'sigma_f', 'lengthscales', 'sigma_n'}). ``factorise=False`` defers the O(n^3) Cholesky
-    factorisation over all n points to the first prediction.
+    factorisation over all n points to the first prediction. ``ell_bounds`` (lower, upper),
+    one entry per input dimension, and ``sigma_f_bounds`` (lower, upper): box constraints of
+    the search in standardised units (default: sigma_f in [1e-2, 1e1], every ell in [1e-3, 1e2]);
+    an isotropic kernel takes the widest of the per-dimension bounds.
     """
     if kernel == "ard_se":
         kernel, ard = "se", True
@@ -533,7 +538,19 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
         Hs = basis_matrix_std(basis, Us)
         # standardised units: sigma_f in [1e-2, 1e1] (the basis carries the trend) and
         # lengthscales in [1e-3, 1e2]; wider bounds only buy ill-conditioning
-        bounds = [(math.log(1e-2), math.log(1e1))] + [(math.log(1e-3), math.log(1e2))] * n_ell \
+        sf_lo, sf_hi = sigma_f_bounds if sigma_f_bounds is not None else (1e-2, 1e1)
+        if ell_bounds is None:
+            ell_b = [(math.log(1e-3), math.log(1e2))] * n_ell
+        else:
+            el_lo = np.broadcast_to(np.asarray(ell_bounds[0], float), (d,))
+            el_hi = np.broadcast_to(np.asarray(ell_bounds[1], float), (d,))
+            if np.any(el_lo <= 0) or np.any(el_hi <= el_lo):
+                raise GPError(f"lengthscale bounds must satisfy 0 < lower < upper, got {ell_bounds}")
+            ell_b = ([(math.log(a), math.log(b)) for a, b in zip(el_lo, el_hi, strict=True)] if ard
+                     else [(math.log(el_lo.min()), math.log(el_hi.max()))])
+            info["ell_bounds_std"] = [el_lo.tolist(), el_hi.tolist()]
+        info["sigma_f_bounds_std"] = [sf_lo, sf_hi]
+        bounds = [(math.log(sf_lo), math.log(sf_hi))] + ell_b \
             + [(math.log(lo), math.log(max(10.0 * lo, 1.0)))]
         init = init or {}
         x0s = [np.array([math.log(init.get("sigma_f", 1.0))]

@@ -13,7 +13,10 @@ Methods (config ``rollouts.methods``):
   back (q_x = n1 cos theta_bar - n2 sin theta_bar, ...), and the discrete moment balance
   -dH/dtheta_i = (m_i - m_{i-1} + ds/2 (c_i + c_{i-1})) / (w_i ds), c = nu1 n2 - nu2 n1.
 The GP means are evaluated by the evaluators of the saved models (``crgpr.gp.load_evaluator``:
-the DTC mean or the 1-D table whose error against the exact mean gradient_models.py measured).
+the exact posterior mean over all n points with truncated kernel sums, or the DTC mean, and the
+1-D tables, whose error against the dense exact mean gradient_models.py measured).
+``cr_gpr_paper_hyp``: the paper's model with Table II's hyperparameters (``hyperparameters:
+paper_table2``, models in ``results/models/{prefilter}_paper_hyp``).
 
 Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
 dissipated power, paper Fig. 5), and the learned stored energy by the path integral
@@ -194,14 +197,26 @@ def method_spec(cfg: dict[str, Any], method: str) -> dict[str, str]:
     return methods[method]
 
 
+def model_dir_name(method_cfg: dict[str, str]) -> str:
+    """Folder (under results/models) of a method's gradient models: ``{prefilter}`` for fitted
+    hyperparameters, ``{prefilter}_paper_hyp`` for the paper's Table II values."""
+    hyp = method_cfg["hyperparameters"]
+    if hyp == "fitted":
+        return method_cfg["prefilter"]
+    if hyp == "paper_table2" and method_cfg["features"] == "paper":
+        return f"{method_cfg['prefilter']}_paper_hyp"
+    raise ConfigError(f"rollouts.methods: hyperparameters {hyp!r} with features "
+                      f"{method_cfg['features']!r}; Table II exists for the paper's features only")
+
+
 def model_files(results: str, method_cfg: dict[str, str]) -> list[str]:
     """Model JSON paths a method needs (for the Snakemake rule)."""
-    pf = method_cfg["prefilter"]
+    d = model_dir_name(method_cfg)
     if method_cfg["features"] == "paper":
         names = ["q_x", "q_y", "dH_dtheta", *MOMENTUM_MODELS]
-        return [f"{results}/models/{pf}/{n}.json" for n in names]
-    return ([f"{results}/models/{pf}/{n}.json" for n in ("obj_n1", "obj_n2", "obj_m")]
-            + [f"{results}/models/{pf}/{n}.json" for n in MOMENTUM_MODELS])
+        return [f"{results}/models/{d}/{n}.json" for n in names]
+    return ([f"{results}/models/{d}/{n}.json" for n in ("obj_n1", "obj_n2", "obj_m")]
+            + [f"{results}/models/{d}/{n}.json" for n in MOMENTUM_MODELS])
 
 
 def needed_model_jsons(results: str, methods: dict[str, dict[str, str]]) -> list[str]:
