@@ -147,7 +147,8 @@ UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
         ("  n_hyper: 100\n  n_restarts: 1\n  hyper_bounds",
          "  n_hyper: 120\n  n_restarts: 1\n  hyper_bounds",
          {"gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0, "rollout": 6,
-          "table2": 1, "metrics": 1, "baselines_table": 1, "uq_samples": 1, "paper_tables": 1,
+          "table2": 1, "metrics": 1, "baselines_table": 1, "paper_tables": 1,
+          "uq_samples": 12,  # one job per GP of each uq.methods entry: 2 methods x 6 GPs
           "paper_hyp_lml": 1},
          UPSTREAM | {"prefilter", "blackbox_train", "blackbox_rollout"}),
         # a setting of the GP prefilter: the gp branch only, not the finite-difference ablation
