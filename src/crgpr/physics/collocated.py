@@ -63,6 +63,23 @@ from numba import njit
 
 
 @njit(cache=True)
+def _nodal_strains(q, i, ds):
+    """Stretch and shear at node i from the paper's stencils (forward slope at the clamped node
+    0, central slope elsewhere) with cos, sin of theta_i and the node's quadrature weight a."""
+    if i == 0:
+        ex = (q[1, 0] - q[0, 0]) / ds
+        ey = (q[1, 1] - q[0, 1]) / ds
+        a = 0.5
+    else:
+        ex = (q[i + 1, 0] - q[i - 1, 0]) / (2.0 * ds)
+        ey = (q[i + 1, 1] - q[i - 1, 1]) / (2.0 * ds)
+        a = 1.0
+    c = math.cos(q[i, 2])
+    s = math.sin(q[i, 2])
+    return c * ex + s * ey, -s * ex + c * ey, c, s, a
+
+
+@njit(cache=True)
 def _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
     """Generalised elastic forces (N+1, 3) of ``collocated`` (module docstring); same arguments
     as rod._internal_forces. Returns rod.py's elastic energy V of q (the reference energy; this
@@ -101,18 +118,7 @@ def _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base
         )
     # nodal couples c_i (i = 0..N-1; c_N = 0 at the free tip), weight w_i ds
     for i in range(n):
-        if i == 0:
-            ex = (q[1, 0] - q[0, 0]) / ds
-            ey = (q[1, 1] - q[0, 1]) / ds
-            a = 0.5
-        else:
-            ex = (q[i + 1, 0] - q[i - 1, 0]) / (2.0 * ds)
-            ey = (q[i + 1, 1] - q[i - 1, 1]) / (2.0 * ds)
-            a = 1.0
-        c = math.cos(q[i, 2])
-        s = math.sin(q[i, 2])
-        nu1 = c * ex + s * ey
-        nu2 = -s * ex + c * ey
+        nu1, nu2, c, s, a = _nodal_strains(q, i, ds)
         F[i, 2] += a * ds * (nu1 * GA * (nu2 - nu2_0) - nu2 * EA * (nu1 - nu1_0))
     if k_base < np.inf:
         F[0, 2] -= k_base * (q[0, 2] - th_base)
@@ -133,18 +139,7 @@ def _nodal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_
     V = 0.0
     # stretch and shear at the nodes 0..N-1 (q_N = 0 at the free tip)
     for i in range(n):
-        if i == 0:
-            ex = (q[1, 0] - q[0, 0]) / ds
-            ey = (q[1, 1] - q[0, 1]) / ds
-            a = 0.5
-        else:
-            ex = (q[i + 1, 0] - q[i - 1, 0]) / (2.0 * ds)
-            ey = (q[i + 1, 1] - q[i - 1, 1]) / (2.0 * ds)
-            a = 1.0
-        c = math.cos(q[i, 2])
-        s = math.sin(q[i, 2])
-        nu1 = c * ex + s * ey
-        nu2 = -s * ex + c * ey
+        nu1, nu2, c, s, a = _nodal_strains(q, i, ds)
         n1 = EA * (nu1 - nu1_0)
         n2 = GA * (nu2 - nu2_0)
         qx = n1 * c - n2 * s
