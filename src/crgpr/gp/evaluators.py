@@ -27,11 +27,11 @@ flow). They share one representation of a single-output GP mean in the units of 
 
 ``kernel_sum`` is the one compiled kernel sum of the package: ``kernel_sum`` (IEEE, used by
 the means) and ``kernel_sum_fast`` (the same source compiled with fastmath and a polynomial
-exp, used by the posterior samples, where 1e-10 relative error is far below the sample
-spread). ``load_evaluator(stem)`` builds an evaluator from a saved model (``stem.npz`` +
-``stem.json``, ``allow_pickle=False``): its table, else its exact-mean weights (``mean_alpha``,
-``mean_beta``, truncation ``exact_tol`` in the JSON), else its DTC arrays, else the exact mean
-factorised on load.
+exp (``_exp_neg_half``, relative error < 1e-13, shared with the exact mean's truncated sums),
+used by the posterior samples). ``load_evaluator(stem)`` builds an evaluator from a saved
+model (``stem.npz`` + ``stem.json``, ``allow_pickle=False``): its table, else its exact-mean
+weights (``mean_alpha``, ``mean_beta``, truncation ``exact_tol`` in the JSON), else its DTC
+arrays, else the exact mean factorised on load.
 """
 
 from __future__ import annotations
@@ -51,15 +51,16 @@ KERNEL_ID = {"se": 0, "matern52": 1}
 _SE_POLY = 2  # kernel id of the SE kernel with the polynomial exp (kernel_sum_fast only)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _exp_neg_half(r2):
-    """exp(-r2 / 2) for r2 >= 0: r2 clipped at 80 (exp(-40) = 4e-18, i.e. 0 for a kernel),
-    exp(u / 64)^64 with a degree-12 Taylor polynomial (relative error < 1e-10): vectorisable."""
-    u = -0.5 * min(r2, 80.0) * 0.015625
+    """exp(-r2 / 2) for 0 <= r2 <= 80 (clipped above; exp(-40) = 4e-18 is 0 for a kernel):
+    exp(u / 256)^256 with a degree-11 Taylor polynomial, relative error < 1e-13 (measured
+    3.8e-14 on [0, 80]); vectorisable. Used by the posterior samples' and the exact mean's sums."""
+    u = -0.5 * min(r2, 80.0) * 0.00390625
     p = 1.0
-    for k in range(12, 0, -1):
+    for k in range(11, 0, -1):
         p = 1.0 + u / k * p
-    for _ in range(6):
+    for _ in range(8):
         p = p * p
     return p
 
@@ -207,25 +208,12 @@ def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
     return KiV, np.zeros(0)
 
 
-@njit(cache=True, fastmath=True, inline="always")
-def _exp_neg_half_acc(r2):
-    """exp(-r2 / 2) for 0 <= r2 <= 80 (clipped above): exp(u / 256)^256 with a degree-11 Taylor
-    polynomial, relative error < 1e-13 (measured 3.8e-14 on [0, 80]); vectorisable."""
-    u = -0.5 * min(r2, 80.0) * 0.00390625
-    p = 1.0
-    for k in range(11, 0, -1):
-        p = 1.0 + u / k * p
-    for _ in range(8):
-        p = p * p
-    return p
-
-
 @njit(cache=True, fastmath=True)
 def _truncated_sum(Ql, ZT, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out):
     """out[i] = sum_j a_j k(Ql_i, Z_j) / sigma_f^2 over the centres with r <= rcut (cell grid:
     ``KernelMean._grid``); centres ZT (d, M) sorted by (cell along k0, key1 = coordinate k1).
     Inner loops run over contiguous centres (SIMD): the squared distances of a window, then
-    the masked kernel sum (SE: ``_exp_neg_half_acc``)."""
+    the masked kernel sum (SE: ``_exp_neg_half``)."""
     nq, d = Ql.shape
     ncell = starts.shape[0] - 1
     rc2 = rcut * rcut
@@ -255,7 +243,7 @@ def _truncated_sum(Ql, ZT, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out
             if kernel_id == 0:
                 for t in range(m):
                     w = aw[t] if r2[t] <= rc2 else 0.0
-                    acc += w * _exp_neg_half_acc(r2[t])
+                    acc += w * _exp_neg_half(r2[t])
             else:
                 for t in range(m):
                     if r2[t] <= rc2:
