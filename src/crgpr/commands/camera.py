@@ -85,6 +85,7 @@ def camera_ablation_cell(cfg: dict[str, Any], model_dir: str, gts: list[str], an
         rows.append(row)
     write_json({"model_dir": model_dir, "features": man["features"], "prefilter": man["prefilter"],
                 "noise_std_m_estimated": man["state"].get("noise_std_m_estimated"),
+                "nominal_laws": man.get("nominal_laws", []),
                 "learn_seconds": man["seconds"], "t_end_s": st.t_end, "rows": rows}, out)
 
 
@@ -107,6 +108,7 @@ def camera_ablation(cells: list[str], noise_mm: list[float], prefilters: list[st
                                "t_end_s": cell["t_end_s"],
                                "noise_mm_estimated": math.nan if cell["noise_std_m_estimated"] is None
                                else cell["noise_std_m_estimated"] * 1e3,
+                               "nominal_laws": "+".join(cell.get("nominal_laws", [])) or "none",
                                "learn_seconds": cell["learn_seconds"]}
         for _, a in r.iterrows():
             row[f"rmse_theta_{int(a['theta0_deg'])}"] = a["rmse_theta"]
@@ -133,9 +135,11 @@ def _ablation_figure(df: pd.DataFrame, out: str) -> None:
                 continue
             y = d["rmse_theta_mean_finite"].to_numpy()
             ax.plot(d["noise_mm"], y, "o-", color=c, label=f"{p} prefilter")
-            for x, yy, k in zip(d["noise_mm"], y, d["divergences"], strict=True):
-                if k:
-                    ax.annotate(f"{k} div.", (x, yy), textcoords="offset points", xytext=(4, 4),
+            nominal = d["nominal_laws"] if "nominal_laws" in d else ["none"] * len(d)
+            for x, yy, k, nom in zip(d["noise_mm"], y, d["divergences"], nominal, strict=True):
+                note = ([f"{k} div."] if k else []) + ([f"{nom} nominal"] if nom != "none" else [])
+                if note:
+                    ax.annotate(", ".join(note), (x, yy), textcoords="offset points", xytext=(4, 4),
                                 fontsize=7, color=c)
         ax.set_yscale("log")
         ax.set_xlabel("camera position noise [mm]")

@@ -8,9 +8,15 @@ Input: the measured-data format of ``crgpr discover`` (Parquet, one row per (t, 
 ``gradient_models.train_model_arrays``, exactly as in stage 2. The model's rod is the nominal
 ``rod`` of the config on the measured node grid (N = measured segments).
 
+Grey box (objective features, ``camera.learn.nominal_laws``): the stretch and shear laws n1, n2
+that the positions cannot resolve come from the nominal rod (``learning.nominal.NominalLaw``)
+and only the bending moment m (and the momentum maps) are learned; with ``auto`` the choice is
+made from the strain signal-to-noise ratios, which the manifest records with the decision.
+
 MODEL_DIR holds one ``.npz`` + ``.json`` per gradient model and ``manifest.json`` (written
 last; its presence marks a complete directory): features, prefilter, input kind, source file,
-rod parameters, the derived-state report (estimated noise level, frames used) and the seeds,
+rod parameters, the derived-state report (estimated noise level, frames used), the laws taken
+from the nominal rod (``nominal_laws``, ``strain_snr``; ``models`` lists the learned ones) and the seeds,
 so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
 """
 
@@ -29,10 +35,12 @@ import pandas as pd
 
 from crgpr.config import ConfigError, rod_params, sim_settings
 from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured
+from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
-from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays
+from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays, training_data
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
+from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, choose_nominal, position_noise_std, strain_snr
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -126,22 +134,46 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         spec = cfg_m["gradient_models"]["models"][m]
         spec["sigma_n_min"] = max(float(spec["sigma_n_min"]), float(cam["momentum_sigma_n_min"]))
     trim = int(cam["trim_ends"]) if kind == "positions" else 0
+    grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim)
+    trained = [n for n in names if n not in {NOMINAL_LAWS[k] for k in grey["nominal_laws"]}]
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     (out / MANIFEST).unlink(missing_ok=True)
     reports = {}
-    for name in names:
+    for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
                                   extra={"input": kind}, trim_ends=trim)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(), "state": state_report,
-                "trim_ends": trim, "models": names, "model_reports": reports, "seed": seed,
+                "trim_ends": trim, "models": trained, **grey, "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
+
+
+def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,
+             cam: dict[str, Any], trim: int) -> dict[str, Any]:
+    """Which constitutive laws come from the nominal rod (``learning.nominal``) and why.
+
+    The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
+    names (or, with ``auto``, those whose strain SNR is below ``camera.learn.snr_min``) replace
+    the objective features' n1 / n2 GPs. The paper's features have no separate stretch and shear
+    law (q_x, q_y mix all three), so they are always learned in full.
+    """
+    sigma = position_noise_std(np.concatenate([x, y], axis=1))
+    res = {k: training_data(arr, params, f"obj_{k}", None, trim)[1] for k in ("n1", "n2", "m")}
+    snr = strain_snr(res, params, sigma)
+    setting = cam["nominal_laws"]
+    chosen = choose_nominal(setting, snr, float(cam["snr_min"]))
+    if features != "objective":
+        chosen = []
+    return {"nominal_laws": chosen, "nominal_laws_setting": setting, "snr_min": float(cam["snr_min"]),
+            "position_noise_std_m_differences": sigma, "strain_snr": snr,
+            "nominal_stiffness": {"EA": params.EA, "GA": params.GA, "nu1_0": params.nu1_0,
+                                  "nu2_0": params.nu2_0}}
 
 
 def read_manifest(model_dir: str | Path) -> dict[str, Any]:
@@ -159,7 +191,12 @@ def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
     """The learned rod of a model directory, on the rod recorded in its manifest."""
     man = read_manifest(model_dir)
     params = RodParams.from_dict(man["rod"])
-    return LearnedRod.from_dir(model_dir, man["features"], params), man
+    nominal = man.get("nominal_laws", [])
+    if not nominal:
+        return LearnedRod.from_dir(model_dir, man["features"], params), man
+    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in nominal}
+    comps.update({m: load_evaluator(Path(model_dir) / m) for m in man["models"]})
+    return LearnedRod(comps, man["features"], params), man
 
 
 def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:

@@ -1,0 +1,101 @@
+"""Grey-box CR-GPR: constitutive laws taken from the nominal rod instead of learned (issue 14).
+
+Camera positions resolve bending but not always stretch and shear: at 1 mm noise on 2 cm
+segments the axial strain nu1 - 1 (~1e-3) and the shear nu2 (~5e-3) are far below the strain
+noise of one segment, sqrt(2) sigma / ds (~0.07), so GPs of n1 and n2 learn noise and the
+learned rod does not hold together. A grey-box model keeps the learned bending moment m and
+takes the unresolvable laws from the nominal rod (the config's ``rod``, the constitutive law of
+the simulator's eq. (4) discretisation, physics/rod.py):
+
+    n1 = EA (nu1 - nu1_0),   n2 = GA (nu2 - nu2_0)
+
+``NominalLaw`` is one more implementation of the component protocol of
+``learning.learned.LearnedRod`` (a callable on the objective feature rows [nu1, nu2, kappa]),
+so the learned rod, its rollouts and its energy are unchanged.
+
+Which laws: a fixed list (config ``camera.learn.nominal_laws``: [n1], [n2], [n1, n2], []) or
+``auto``: a law is taken from the nominal rod when its strain is not resolvable by the
+positions, i.e. when the strain signal-to-noise ratio ``strain_snr`` is below
+``camera.learn.snr_min``:
+
+    signal = rms(n_k) / (stiffness_k)           the strain the measured resultants n_k (from
+                                                the force balance, eq. (13)) imply on the
+                                                nominal rod (n1 / EA, n2 / GA; m / EI for kappa)
+    noise  = sqrt(2) sigma / ds                 one segment's strain noise from positions with
+                                                noise sigma (nu1, nu2); 2 sigma / ds^2 (kappa)
+
+with sigma estimated from the raw positions (``position_noise_std``: fourth differences in time,
+robust scale), so the decision does not depend on the prefilter.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from crgpr.physics.params import RodParams
+
+NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2"}  # law -> objective component
+
+
+class NominalLaw:
+    """Component ``obj_n1`` / ``obj_n2`` of the nominal rod: n1 = EA (nu1 - nu1_0) or
+    n2 = GA (nu2 - nu2_0) at objective feature rows X (..., 3) = [nu1, nu2, kappa]."""
+
+    def __init__(self, law: str, params: RodParams):
+        if law not in NOMINAL_LAWS:
+            raise ValueError(f"unknown nominal law {law!r}; expected one of {sorted(NOMINAL_LAWS)}")
+        self.law = law
+        self.name = NOMINAL_LAWS[law]
+        if law == "n1":
+            self.col, self.stiffness, self.ref = 0, float(params.EA), float(params.nu1_0)
+        else:
+            self.col, self.stiffness, self.ref = 1, float(params.GA), float(params.nu2_0)
+        self.meta: dict[str, Any] = {"name": self.name, "kind": "nominal", "law": law,
+                                     "stiffness": self.stiffness, "reference_strain": self.ref}
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return self.stiffness * (np.asarray(X)[..., self.col] - self.ref)
+
+
+def position_noise_std(x: np.ndarray) -> float:
+    """Noise std [m] of positions x (n_t, ...) sampled at a fixed rate: fourth differences in time
+    (white noise: variance 70 sigma^2; a smooth motion adds h^4 x'''' only), robust scale
+    (median absolute value / 0.6745)."""
+    if x.shape[0] < 5:
+        return math.nan
+    d4 = x[4:] - 4 * x[3:-1] + 6 * x[2:-2] - 4 * x[1:-3] + x[:-4]
+    d4 = d4[np.isfinite(d4)]
+    if d4.size == 0:
+        return math.nan
+    return float(np.median(np.abs(d4)) / 0.6745 / math.sqrt(70.0))
+
+
+def strain_snr(resultants: dict[str, np.ndarray], params: RodParams, sigma_m: float) -> dict[str, dict]:
+    """Signal-to-noise of each strain (see module docstring); ``resultants``: the training
+    targets n1, n2, m (any shape)."""
+    ds = params.ds
+    noise = {"n1": math.sqrt(2.0) * sigma_m / ds, "n2": math.sqrt(2.0) * sigma_m / ds,
+             "m": 2.0 * sigma_m / ds**2}
+    stiff = {"n1": params.EA, "n2": params.GA, "m": params.EI}
+    out = {}
+    for k, v in resultants.items():
+        sig = float(np.sqrt(np.mean(np.square(v)))) / float(stiff[k])
+        out[k] = {"strain": {"n1": "nu1 - nu1_0", "n2": "nu2 - nu2_0", "m": "kappa"}[k],
+                  "signal_rms": sig, "noise_rms": noise[k],
+                  "snr": math.inf if noise[k] == 0 else sig / noise[k]}
+    return out
+
+
+def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: float) -> list[str]:
+    """Laws taken from the nominal rod: the configured list, or with ``auto`` those of n1, n2
+    whose strain SNR is below ``snr_min`` (m is always learned)."""
+    if setting == "auto":
+        return [k for k in NOMINAL_LAWS if not snr[k]["snr"] >= snr_min]
+    bad = [k for k in setting if k not in NOMINAL_LAWS]
+    if bad:
+        raise ValueError(f"camera.learn.nominal_laws: unknown law(s) {bad}; expected 'auto' or a "
+                         f"subset of {sorted(NOMINAL_LAWS)}")
+    return [k for k in NOMINAL_LAWS if k in setting]
