@@ -38,9 +38,17 @@ from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_mea
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
+from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays, training_data
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
-from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, choose_nominal, position_noise_std, strain_snr
+from crgpr.learning.nominal import (
+    NOMINAL_LAWS,
+    NominalLaw,
+    SelectedInputs,
+    choose_nominal,
+    position_noise_std,
+    strain_snr,
+)
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -136,6 +144,18 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     trim = int(cam["trim_ends"]) if kind == "positions" else 0
     grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim)
     trained = [n for n in names if n not in {NOMINAL_LAWS[k] for k in grey["nominal_laws"]}]
+    # the bending law's inputs (objective features): camera.learn.bending_inputs; the end segments
+    # (trim_ends) are left out of the laws whose inputs hold the derived shear nu2, which the
+    # extrapolated end angles corrupt (learning/camera.py)
+    bend = [str(f) for f in cam["bending_inputs"]]
+    if "kappa" not in bend or any(f not in OBJ_M_FEATURES for f in bend):
+        raise ConfigError(f"camera.learn.bending_inputs: {bend}; expected kappa and a subset of "
+                          f"{OBJ_M_FEATURES}")
+    m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
+        OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
+    trims = {n: trim for n in trained}
+    if m_cols is not None and "nu2" not in bend:
+        trims["obj_m"] = 0
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -144,11 +164,14 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     reports = {}
     for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
-                                  extra={"input": kind}, trim_ends=trim)
+                                  extra={"input": kind}, trim_ends=trims[name],
+                                  columns=m_cols if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(), "state": state_report,
-                "trim_ends": trim, "models": trained, **grey, "model_reports": reports, "seed": seed,
+                "trim_ends": trim, "trim_ends_per_model": trims,
+                "bending_inputs": bend if features == "objective" else None, "models": trained, **grey,
+                "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
@@ -191,12 +214,14 @@ def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
     """The learned rod of a model directory, on the rod recorded in its manifest."""
     man = read_manifest(model_dir)
     params = RodParams.from_dict(man["rod"])
-    nominal = man.get("nominal_laws", [])
-    if not nominal:
-        return LearnedRod.from_dir(model_dir, man["features"], params), man
-    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in nominal}
-    comps.update({m: load_evaluator(Path(model_dir) / m) for m in man["models"]})
-    return LearnedRod(comps, man["features"], params), man
+    if man["features"] == "paper":
+        return LearnedRod.from_dir(model_dir, "paper", params), man
+    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
+    for m in man.get("models", model_names("objective")):
+        ev = load_evaluator(Path(model_dir) / m)
+        cols = ev.meta.get("feature_columns")
+        comps[m] = ev if cols is None else SelectedInputs(ev, cols)
+    return LearnedRod(comps, "objective", params), man
 
 
 def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:

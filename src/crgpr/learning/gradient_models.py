@@ -303,13 +303,16 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
 def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray], params: RodParams,
                        out_stem: str | Path, source: str, prefilter_method: str,
                        extra: dict[str, Any] | None = None, trim_ends: int = 0,
-                       check_states: list[str] | None = None, hyper: str = "fitted") -> dict[str, Any]:
+                       check_states: list[str] | None = None, hyper: str = "fitted",
+                       columns: list[int] | None = None) -> dict[str, Any]:
     """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
 
     ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
     to the model's JSON; ``trim_ends`` see ``training_data``; ``check_states``: ground-truth
     trajectory files at whose states the rollout mean is checked; ``hyper``: 'fitted' or
-    'paper_table2'. Used by stage 2 (prefilter files) and by ``crgpr learn`` (camera data).
+    'paper_table2'; ``columns``: fit on these columns of the model's features only (recorded as
+    ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
+    grey-box bending law). Used by stage 2 (prefilter files) and by ``crgpr learn`` (camera data).
     """
     gm = cfg["gradient_models"]
     spec = model_spec(cfg, name)
@@ -322,8 +325,14 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
     check_X = (state_inputs(check_states, params, name, center, int(gm["check_every"]))
                if check_states else None)
+    feats = list(FEATURE_NAMES[name])
+    if columns is not None:
+        X = X[:, columns]
+        check_X = None if check_X is None else check_X[:, columns]
+        feats = [feats[c] for c in columns]
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed, check_X, hyper)
-    meta = {"name": name, "features": list(FEATURE_NAMES[name]), "theta_center": center,
+    meta = {"name": name, "features": feats, "theta_center": center,
+            **({"feature_columns": list(columns)} if columns is not None else {}),
             "prefilter": prefilter_method, "source": str(source), "seed": seed, **report,
             "check_states": [str(c) for c in (check_states or [])],
             "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py", **(extra or {})}

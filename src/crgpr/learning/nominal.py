@@ -60,6 +60,24 @@ class NominalLaw:
         return self.stiffness * (np.asarray(X)[..., self.col] - self.ref)
 
 
+class SelectedInputs:
+    """A component fitted on some columns of its feature rows (``feature_columns`` of the model's
+    JSON): the grey-box bending law m(kappa) evaluated on the objective m features. One column:
+    the 1-D components' convention (values (...), like the momentum maps H_p(p)); several:
+    rows (..., k)."""
+
+    def __init__(self, component: Any, columns: list[int]):
+        self.component = component
+        self.columns = list(columns)
+        self.meta = getattr(component, "meta", {})
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X)
+        if len(self.columns) == 1:
+            return self.component(X[..., self.columns[0]])
+        return self.component(X[..., self.columns])
+
+
 def position_noise_std(x: np.ndarray) -> float:
     """Noise std [m] of positions x (n_t, ...) sampled at a fixed rate: fourth differences in time
     (white noise: variance 70 sigma^2; a smooth motion adds h^4 x'''' only), robust scale
