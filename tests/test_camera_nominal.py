@@ -114,6 +114,14 @@ def test_manifest_records_the_grey_box_decision(noisy_models):
     assert man["position_noise_std_m_differences"] == pytest.approx(1e-3, rel=0.15)
     model, _ = load_learned(d / "auto")
     assert isinstance(model.components["obj_n1"], NominalLaw)
+    # the bending law m(kappa), odd about the nominal rest curvature (0): bends both ways alike,
+    # although the 85 deg record curves the rod mostly one way
+    assert man["bending_inputs"] == ["kappa"] and man["bending_odd_about"] == 0.0
+    X = np.zeros((2, 5))
+    X[:, 0] = [-20.0, 20.0]
+    m = model.components["obj_m"](X)
+    P = rod_params(cfg)
+    assert m[1] == pytest.approx(-m[0], rel=0.1) and m[1] == pytest.approx(20.0 * P.EI, rel=0.3)
     assert read_manifest(d / "all")["nominal_laws"] == []
 
 

@@ -153,6 +153,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           f"{OBJ_M_FEATURES}")
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
+    odd = None
+    if cam["bending_symmetry"] == "odd" and features == "objective":
+        if bend != ["kappa"]:
+            raise ConfigError("camera.learn.bending_symmetry: odd needs camera.learn.bending_inputs: [kappa]")
+        odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
     if m_cols is not None and "nu2" not in bend:
         trims["obj_m"] = 0
@@ -165,12 +170,14 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
                                   extra={"input": kind}, trim_ends=trims[name],
-                                  columns=m_cols if name == "obj_m" else None)
+                                  columns=m_cols if name == "obj_m" else None,
+                                  odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(), "state": state_report,
                 "trim_ends": trim, "trim_ends_per_model": trims,
-                "bending_inputs": bend if features == "objective" else None, "models": trained, **grey,
+                "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
+                "models": trained, **grey,
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)

@@ -304,7 +304,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
                        out_stem: str | Path, source: str, prefilter_method: str,
                        extra: dict[str, Any] | None = None, trim_ends: int = 0,
                        check_states: list[str] | None = None, hyper: str = "fitted",
-                       columns: list[int] | None = None) -> dict[str, Any]:
+                       columns: list[int] | None = None, odd_about: float | None = None) -> dict[str, Any]:
     """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
 
     ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
@@ -312,7 +312,10 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     trajectory files at whose states the rollout mean is checked; ``hyper``: 'fitted' or
     'paper_table2'; ``columns``: fit on these columns of the model's features only (recorded as
     ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
-    grey-box bending law). Used by stage 2 (prefilter files) and by ``crgpr learn`` (camera data).
+    grey-box bending law); ``odd_about``: a 1-D law odd about this input value (the bending
+    moment of a rod with a symmetric section about its rest curvature, m(2 k0 - k) = -m(k)):
+    the reflected samples (2 k0 - x, -y) are added to the training set. Used by stage 2
+    (prefilter files) and by ``crgpr learn`` (camera data).
     """
     gm = cfg["gradient_models"]
     spec = model_spec(cfg, name)
@@ -330,9 +333,14 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
         X = X[:, columns]
         check_X = None if check_X is None else check_X[:, columns]
         feats = [feats[c] for c in columns]
+    if odd_about is not None:
+        if X.shape[1] != 1:
+            raise ConfigError(f"model {name}: an odd-symmetric law needs one input, got {X.shape[1]}")
+        X, y = np.concatenate([X, 2.0 * odd_about - X]), np.concatenate([y, -y])
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed, check_X, hyper)
     meta = {"name": name, "features": feats, "theta_center": center,
             **({"feature_columns": list(columns)} if columns is not None else {}),
+            **({"odd_about": float(odd_about)} if odd_about is not None else {}),
             "prefilter": prefilter_method, "source": str(source), "seed": seed, **report,
             "check_states": [str(c) for c in (check_states or [])],
             "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py", **(extra or {})}
