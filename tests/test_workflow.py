@@ -101,7 +101,6 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
         "crgpr_sensitivity.csv": ["variant", "method", "overlay", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
-        "oracle_exact_gap.csv": ["theta0_deg", "dtc_minus_exact_over_std", "exact_rmse_over_std"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
                                       "verdict"],
     }.items():
