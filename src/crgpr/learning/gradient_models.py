@@ -314,7 +314,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
     grey-box bending law); ``odd_about``: a 1-D law odd about this input value (the bending
     moment of a rod with a symmetric section about its rest curvature, m(2 k0 - k) = -m(k)):
-    the reflected samples (2 k0 - x, -y) are added to the training set. Used by stage 2
+    n_train / 2 samples and their reflections (2 k0 - x, -y) are the training set. Used by stage 2
     (prefilter files) and by ``crgpr learn`` (camera data).
     """
     gm = cfg["gradient_models"]
@@ -336,6 +336,10 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     if odd_about is not None:
         if X.shape[1] != 1:
             raise ConfigError(f"model {name}: an odd-symmetric law needs one input, got {X.shape[1]}")
+        # n_train / 2 samples (seeded) and their reflections: the training set is exactly symmetric
+        half = min(int(spec["n_train"]) // 2, X.shape[0])
+        keep = np.sort(np.random.default_rng(seed).choice(X.shape[0], size=half, replace=False))
+        X, y = X[keep], y[keep]
         X, y = np.concatenate([X, 2.0 * odd_about - X]), np.concatenate([y, -y])
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed, check_X, hyper)
     meta = {"name": name, "features": feats, "theta_center": center,
