@@ -759,9 +759,11 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         step["trajectory_score"] = scores
         order = sorted(ranked, key=lambda r: -scores[r[1]])
         screened = order[:st.max_confirm]
-        # a bounded candidate whose first-order step points out of its admissible range (score
-        # 0: KKT, the constrained optimum stays at the bound to first order) is not fitted
-        rest = [r for r in order[st.max_confirm:] if scores[r[1]] > 0.0]
+        # all others are fitted if the screened ones fail: the linearised score is local (a
+        # frequency-changing effect's response is far from linear once the phase error is
+        # large: on the mid-motion camera record tip_mass scored 0, pointing out of range,
+        # and was the effect)
+        rest = order[st.max_confirm:]
         for group in (screened, rest):
             best = None
             for gain, k, f in group:
