@@ -19,6 +19,7 @@ from crgpr.discovery.selection import (
     TrajectoryFit,
     eliminate,
     local_stiffness_error,
+    time_windows,
     trajectory_delta_bic,
 )
 from crgpr.physics.rod import segment_EI
@@ -136,3 +137,13 @@ def test_trajectory_delta_bic_is_a_nested_model_test():
     same = f.fit(["tip_mass", "rest_curvature"], None, None, 0)
     assert trajectory_delta_bic(small, big) > 10.0
     assert trajectory_delta_bic(small, same) < 0.0  # an extra parameter that changes nothing costs log n
+
+
+@pytest.mark.parametrize("T, w", [(1.0, 0.1), (0.8, 0.1), (2.0, 0.1), (0.95, 0.1), (0.3, 0.1)])
+def test_time_windows_cover_the_record_without_a_one_sample_window(T, w):
+    t = np.arange(0.0, T + 1e-9, 0.004)
+    wins = time_windows(t, w)
+    masks = np.array([m for _, _, m in wins])
+    assert np.all(masks.sum(axis=0) == 1)  # every sample in exactly one window
+    assert min(m.sum() for m in masks) >= 0.5 * w / 0.004  # none degenerate (the last included)
+    assert wins[0][0] == 0.0 and wins[-1][1] == pytest.approx(t[-1])

@@ -189,6 +189,21 @@ def nominal_dissipation_rate(kin: Kinematics, params: RodParams) -> np.ndarray:
     return rate + (params.air_drag * w * sp2**1.5).sum(-1)
 
 
+def time_windows(t: np.ndarray, window_s: float) -> list[tuple[float, float, np.ndarray]]:
+    """Consecutive windows of about ``window_s`` covering t[0]..t[-1] (t from 0), each with its
+    sample mask; the record is split into round(T / window_s) equal windows, so no window
+    holds only the last sample (an arange of edges past t[-1] made a window [T, T] whose single
+    end sample, where the GP derivatives are least reliable, was reported as the worst)."""
+    n_win = max(1, int(round(float(t[-1]) / window_s)))
+    edges = np.linspace(0.0, float(t[-1]), n_win + 1)
+    out = []
+    for i, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+        sel = (t >= a) & ((t < b) if i < n_win - 1 else (t <= b))
+        if sel.any():
+            out.append((float(a), float(b), sel))
+    return out
+
+
 def local_stiffness_error(res: Residual, q_model: np.ndarray, params: RodParams, rows: slice
                           ) -> dict[str, Any]:
     """Where along s the bending law departs from the nominal one: a relative stiffness error
@@ -233,12 +248,7 @@ def locate(kin: Kinematics, q_nom: np.ndarray, v_nom: np.ndarray, params: RodPar
     s_cmp = kin.s_markers[kin.s_markers > 1e-9]
     err = q_nom[..., 2] @ M.T - kin.q[..., 2] @ M.T
     per_marker = np.sqrt(np.mean(err**2, axis=0))
-    edges = np.arange(0.0, t[-1] + st.window_s, st.window_s)
-    windows = []
-    for a, b in zip(edges[:-1], edges[1:], strict=False):
-        sel = (t >= a) & (t < b + (1e-12 if b >= t[-1] else 0.0))
-        if sel.any():
-            windows.append((float(a), float(min(b, t[-1])), float(np.sqrt(np.mean(err[sel] ** 2)))))
+    windows = [(a, b, float(np.sqrt(np.mean(err[sel] ** 2)))) for a, b, sel in time_windows(t, st.window_s)]
     worst = max(windows, key=lambda w: w[2])
     onset = next((w for w in windows if w[2] > st.min_gap_rad), None)
     top = np.nonzero(per_marker >= 0.5 * per_marker.max())[0]
