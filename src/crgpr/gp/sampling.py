@@ -58,6 +58,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -600,3 +601,57 @@ def compression_error(samples: PathwiseSamples, comp: CompressedSamples, x: np.n
             "max_rel_sd": float(np.abs(err / sd).max()),
             "rms_rel_sd": float(np.sqrt(np.mean((err / sd) ** 2))),
             "post_sd_median": float(np.median(sd))}
+
+
+def subset_spec(spec: GP, idx: np.ndarray) -> GP:
+    """The same GP (hyperparameters, standardisation) conditioned on the rows ``idx`` only."""
+    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+
+
+def scaled_spec(spec: GP, c: float) -> GP:
+    """The GP with sigma_f and sigma_n both multiplied by ``c``: the posterior mean is unchanged
+    (K_y^-1 scales by c^-2, k_* by c^2; the vague-prior basis coefficients likewise) and the
+    posterior covariance of f, basis part included, is multiplied by c^2 (R&W eq. 2.42)."""
+    if not c > 0:
+        raise ValueError(f"{spec.name}: posterior scale must be > 0, got {c}")
+    return GP.from_standardised(spec.Xs, spec.y, c * spec.sigma_f, spec.ell, c * spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+
+
+def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None
+                        ) -> tuple[float, dict[str, Any]]:
+    """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
+
+    The rows are split into ``n_blocks`` contiguous blocks (for the gradient GPs: time blocks of
+    the training trajectory, whose rows are time-major); each block is predicted by the GP with
+    the same hyperparameters conditioned on the other blocks (DTC posterior on the inducing
+    inputs ``Z`` if given, else exact), giving residuals r_i = y_i - m_-b(x_i) and latent
+    variances v_i. c^2 = mean(r_i^2 / v_i) maximises the held-out predictive log-likelihood of
+    N(m_-b, c^2 v) (the latent predictive, because the targets' errors are correlated along the
+    trajectory: an iid noise term would average them away). Scaling sigma_f and sigma_n by c
+    (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean. Returns
+    (c, diagnostics with the held-out z quantiles before scaling).
+    """
+    n = spec.Xs.shape[0]
+    if not 2 <= n_blocks <= n // 2:
+        raise ValueError(f"{spec.name}: {n_blocks} held-out blocks for n = {n} rows")
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    z_all = []
+    for b in range(n_blocks):
+        te = np.arange(edges[b], edges[b + 1])
+        tr = np.concatenate([np.arange(0, edges[b]), np.arange(edges[b + 1], n)])
+        sub = subset_spec(spec, tr)
+        post = sparse_posterior(sub, Z) if Z is not None else exact_posterior(sub)
+        x_te = spec.Xs[te] * spec.x_std + spec.x_mean
+        m, v = post.mean_var(x_te)
+        r = spec.to_output(spec.y[te]) - m
+        z_all.append(r / np.sqrt(np.maximum(v, 1e-300)))
+    z = np.concatenate(z_all)
+    c = float(np.sqrt(np.mean(z**2)))
+    info = {"posterior_scale": c, "heldout_blocks": int(n_blocks),
+            "heldout_median_abs_z": float(np.median(np.abs(z))),
+            "heldout_coverage95_unscaled": float(np.mean(np.abs(z) < 1.959964)),
+            "heldout_coverage95_scaled": float(np.mean(np.abs(z) < 1.959964 * c)),
+            "heldout_block_rms_z": [float(np.sqrt(np.mean(zb**2))) for zb in z_all]}
+    return c, info
