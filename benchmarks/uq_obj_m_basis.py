@@ -56,8 +56,8 @@ def main() -> None:
         gspec = spec_from_gp(gp, "obj_m")
         post = sparse_posterior(gspec, arrays["dtc_Z"])
         c, cinfo = heldout_block_scale(gspec, int(cfg["uq"]["heldout_blocks"]), arrays["dtc_Z"])
-        print(f"  held-out-block scale c = {c:.3g}", {k: v for k, v in cinfo.items() if k != "posterior_scale"},
-              flush=True)
+        print(f"  held-out-block scale c = {c:.3g}",
+              {k: v for k, v in cinfo.items() if k != "posterior_scale"}, flush=True)
         mean_fn = KernelMean.dtc(gp, arrays["dtc_Z"], arrays["dtc_w"], arrays["dtc_beta"])
         for a, (q, p) in tests.items():
             F = model_features(q, p, P, None)["obj_m"].reshape(-1, 5)

@@ -39,7 +39,8 @@ def main() -> None:
     sim = cfg["simulation"]
     dt = float(sim["dt_s"])
     full = int(round(float(sim["t_end_s"]) / dt))
-    st = SimSettings(dt=dt, t_end=n_steps * dt, record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))
+    st = SimSettings(dt=dt, t_end=n_steps * dt, record_every=int(sim["record_every"]),
+                     scheme=str(sim["scheme"]))
     rollout_samples(smp, mcfg["features"], P, center, angle,
                     SimSettings(dt=dt, t_end=20 * dt, record_every=1, scheme=st.scheme))  # compile / warm up
     prof = cProfile.Profile()
@@ -49,7 +50,8 @@ def main() -> None:
     prof.disable()
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     S = next(iter(smp.values())).n_samples
-    print(f"{method} {angle:g} deg, S = {S}, {n_steps} steps: CPU {cpu:.2f} s ({1e3 * cpu / n_steps:.3f} ms/step), "
+    print(f"{method} {angle:g} deg, S = {S}, {n_steps} steps: "
+          f"CPU {cpu:.2f} s ({1e3 * cpu / n_steps:.3f} ms/step), "
           f"wall {wall:.2f} s; full rollout ({full} steps) ~ {cpu * full / n_steps:.0f} s CPU")
     pstats.Stats(prof).sort_stats("tottime").print_stats(14)
 

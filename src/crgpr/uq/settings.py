@@ -51,7 +51,8 @@ class UQSettings:
         if s.sampler not in SAMPLERS:
             raise ConfigError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
         if s.posterior_scale not in POSTERIOR_SCALES:
-            raise ConfigError(f"config key uq.posterior_scale: {s.posterior_scale!r} is not one of {POSTERIOR_SCALES}")
+            raise ConfigError(f"config key uq.posterior_scale: {s.posterior_scale!r} is not one of "
+                              f"{POSTERIOR_SCALES}")
         if s.paper_n_samples > s.n_samples:
             raise ConfigError(f"config key uq.paper_n_samples: {s.paper_n_samples} > uq.n_samples "
                               f"= {s.n_samples} (the paper's row uses the first samples)")
