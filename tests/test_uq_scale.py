@@ -26,7 +26,7 @@ SETTINGS = UQSettings(methods=("m",), sampler="sparse_pathwise", n_samples=6, pa
                       n_features=64, inducing=40, levels=(50.0, 95.0), angles_deg=(125,),
                       figure_angle_deg=125, figure_level=95.0, figure_time_fractions=(1.0,),
                       exact_check_max_n=300, check_points=50, posterior_scale="heldout_blocks",
-                      heldout_blocks=8)
+                      heldout_blocks=8, kernel_tol=0.0)
 
 
 def _trajectory_gp(n: int, seed: int, bias: float, basis: str = "linear") -> GP:
@@ -98,3 +98,26 @@ def test_sampled_deviations_carry_the_heldout_scale() -> None:
     assert c > 1.5 and info1["posterior_scale"] == 1.0
     m = sparse_posterior(spec, comp_1.Z).mean_var(x)[0]
     np.testing.assert_allclose(comp_c(xb) - m, c * (comp_1(xb) - m), rtol=0, atol=1e-7 * c)
+
+
+def test_truncated_sample_kernel_sums_agree_within_their_bound() -> None:
+    """uq.kernel_tol: the sampled functions with kernel sums truncated below 1e-16 sigma_f^2 (cell
+    grid) equal the dense sums within the recorded bound plus round-off, where most centre-input
+    pairs are actually skipped (short lengthscale); ``select_samples`` keeps the truncation."""
+    from crgpr.uq.samples import select_samples
+
+    base = _trajectory_gp(500, 4, 0.0)
+    spec = GP.from_standardised(base.Xs, base.y, 1.0, np.array([0.12, 0.2]), 0.05, "linear", np.zeros(2),
+                                np.ones(2), 0.3, 2.0, "short")
+    Z = spec.Xs[::4]
+    comp = sparse_posterior(spec, Z).sample(5, 64, np.random.default_rng(3))
+    tr = comp.truncate(1e-16)
+    x = np.random.default_rng(4).uniform(-2.2, 2.2, (5, 200, 2))
+    r2 = (((x[:, :, None, :] - Z[None, None]) / spec.ell) ** 2).sum(-1)
+    assert np.mean(r2 > 2 * np.log(1e16)) > 0.5  # most terms are below the tolerance
+    dense, fast = comp(x), tr(x)
+    assert 0 < tr.truncation_bound < 1e-9 * np.abs(dense).max()
+    np.testing.assert_allclose(fast, dense, rtol=0, atol=tr.truncation_bound + 1e-12 * np.abs(dense).max())
+    sel = select_samples(tr, np.array([0, 3]))
+    assert sel.kernel_tol == 1e-16
+    np.testing.assert_allclose(sel(x[[0, 3]]), fast[[0, 3]], rtol=0, atol=1e-13 * np.abs(dense).max())

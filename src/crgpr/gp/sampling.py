@@ -55,6 +55,7 @@ momentum GPs, which the rollout tabulates (uq.TabulatedSamples).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
@@ -65,7 +66,7 @@ import scipy.linalg as sla
 from numba import njit
 
 from crgpr.gp._gpr import GP, basis_matrix_std, kernel_matrix
-from crgpr.gp.evaluators import _SE_POLY, kernel_sum_fast
+from crgpr.gp.evaluators import _SE_POLY, KernelMean, kernel_sum_fast, truncated_sum_batch
 from crgpr.gp.sparse import select_inducing
 
 log = logging.getLogger(__name__)
@@ -415,7 +416,9 @@ class CompressedSamples:
     per sample), ``w`` (S, D), ``Z`` (M, d) standardised inducing inputs, ``a`` (S, M),
     ``beta`` (S, p), plus the kernel hyperparameters, standardisation and basis name.
     Evaluation: the RFF sums in a compiled loop with a polynomial cosine, the kernel part as
-    a compiled loop with a polynomial exp (both vectorisable, no temporaries).
+    a compiled loop with a polynomial exp (both vectorisable, no temporaries). ``kernel_tol`` > 0
+    (``truncate``): the kernel part skips the centres with k < kernel_tol sigma_f^2, found on the
+    cell grid of ``crgpr.gp.KernelMean`` (same polynomial exp); |change| <= ``truncation_bound``.
     """
 
     omega: np.ndarray
@@ -431,6 +434,7 @@ class CompressedSamples:
     basis: str
     y_mean: float = 0.0
     y_scale: float = 1.0
+    kernel_tol: float = 0.0
 
     def __post_init__(self) -> None:
         self.omega = np.ascontiguousarray(self.omega, dtype=float)
@@ -441,6 +445,21 @@ class CompressedSamples:
         self._omegaT = np.ascontiguousarray(np.transpose(self.omega, (0, 2, 1)))
         self._scale = math.sqrt(2.0 * self.sigma_f**2 / self.omega.shape[1])
         self._a = np.ascontiguousarray(self.a, dtype=float)
+        self._grid: KernelMean | None = None
+        #: bound on |truncated - dense kernel part| at any input, output units
+        self.truncation_bound = 0.0
+        if self.kernel_tol > 0:
+            M = self.Z.shape[0]
+            g = KernelMean("se", "none", self.sigma_f, self.lengthscales, self.x_mean, self.x_std, 0.0, 1.0,
+                           self.Z, np.zeros(M), np.zeros(0), tol=self.kernel_tol)
+            self._grid = g
+            self._a_sorted = np.ascontiguousarray(self._a[:, g.order])
+            self.truncation_bound = float(self.kernel_tol * self.sigma_f**2 * self.y_scale
+                                          * np.abs(self._a).sum(1).max())
+
+    def truncate(self, kernel_tol: float) -> CompressedSamples:
+        """The same samples evaluated with kernel sums truncated below kernel_tol sigma_f^2."""
+        return dataclasses.replace(self, kernel_tol=float(kernel_tol))
 
     @property
     def n_samples(self) -> int:
@@ -468,8 +487,15 @@ class CompressedSamples:
         S, m, d = xs.shape
         out = np.empty((S, m))
         _rff_sum_t(xs, self._omegaT, self.phase, self.w, self._scale, out)
-        kernel_sum_fast(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2,
-                        _SE_POLY, out)
+        xl = np.ascontiguousarray(xs / self.lengthscales)
+        g = self._grid
+        if g is None:
+            kernel_sum_fast(xl, self._ZlT, self._a, self.sigma_f**2, _SE_POLY, out)
+        else:
+            ks = np.empty((S, m))
+            truncated_sum_batch(xl, g.ZT_sorted, self._a_sorted, g.key1, g.starts, g.lo0, g.h, g.k0, g.k1,
+                                g.rcut, 0, ks)
+            out += self.sigma_f**2 * ks
         if self.beta.shape[1]:
             H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
             out += np.einsum("smp,sp->sm", H, self.beta)

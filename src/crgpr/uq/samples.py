@@ -126,7 +126,8 @@ def select_samples(smp: SampleSet, keep: np.ndarray) -> SampleSet:
     arr = smp.to_arrays()
     for k in ("omega", "phase", "w", "a", "beta"):
         arr[k] = arr[k][keep]
-    return CompressedSamples.from_arrays(arr)
+    out = CompressedSamples.from_arrays(arr)
+    return out.truncate(smp.kernel_tol) if smp.kernel_tol > 0 else out
 
 
 # ----------------------------------------------------------------------------------------
@@ -323,9 +324,12 @@ def sample_model(stem: str | Path, name: str, settings: UQSettings, seed: int, o
     return comp
 
 
-def load_samples(paths: dict[str, str | Path]) -> dict[str, SampleSet]:
-    """Sample sets by model name from their .npz files; all must have the same S."""
+def load_samples(paths: dict[str, str | Path], kernel_tol: float = 0.0) -> dict[str, SampleSet]:
+    """Sample sets by model name from their .npz files; all must have the same S.
+    ``kernel_tol`` > 0: kernel sums truncated below kernel_tol sigma_f^2 (CompressedSamples)."""
     out = {name: samples_from_arrays(load_npz(p)) for name, p in paths.items()}
+    if kernel_tol > 0:
+        out = {n: (s.truncate(kernel_tol) if isinstance(s, CompressedSamples) else s) for n, s in out.items()}
     sizes = {m: s.n_samples for m, s in out.items()}
     if len(set(sizes.values())) > 1:
         raise ValueError(f"UQ samples have different S per model: {sizes}")

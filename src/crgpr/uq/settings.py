@@ -35,6 +35,7 @@ class UQSettings:
     check_points: int
     posterior_scale: str
     heldout_blocks: int
+    kernel_tol: float
 
     @classmethod
     def from_section(cls, u: dict[str, Any]) -> UQSettings:
@@ -47,7 +48,8 @@ class UQSettings:
                 figure_angle_deg=int(u["figure_angle_deg"]), figure_level=float(u["figure_level"]),
                 figure_time_fractions=tuple(float(f) for f in u["figure_time_fractions"]),
                 exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]),
-                posterior_scale=str(u["posterior_scale"]), heldout_blocks=int(u["heldout_blocks"]))
+                posterior_scale=str(u["posterior_scale"]), heldout_blocks=int(u["heldout_blocks"]),
+                kernel_tol=float(u["kernel_tol"]))
         if s.sampler not in SAMPLERS:
             raise ConfigError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
         if s.posterior_scale not in POSTERIOR_SCALES:
