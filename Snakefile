@@ -46,7 +46,8 @@ rule all:
         ALL_TARGETS,
 
 
-# Studies beyond the budget of `all` (the camera noise ablation, the CR-GPR sensitivity table):
+# Studies beyond the budget of `all` (the oracle ablation, cr_gpr_paper_hyp and cr_gpr_collocated in
+# accuracy_studies.parquet, the CR-GPR sensitivity table, the camera noise ablation):
 # `snakemake -j2 sweeps`.
 rule sweeps:
     input:

@@ -153,6 +153,15 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     if ang["train_deg"] not in ang["pinn_train_deg"]:
         raise ConfigError(f"{source}: angles.pinn_train_deg must include angles.train_deg "
                           f"({ang['train_deg']})")
+    ro = cfg["rollouts"]
+    unknown = sorted(set(ro["study_methods"]) - set(ro["methods"]))
+    if unknown:
+        raise ConfigError(f"{source}: rollouts.study_methods {unknown} are not keys of rollouts.methods")
+    in_all = [ro["table1_method"], *ro["ablation_methods"], *cfg.get("uq", {}).get("methods", [])]
+    clash = sorted(set(in_all) & set(ro["study_methods"]))
+    if clash:
+        raise ConfigError(f"{source}: rollouts.study_methods {clash} are used by rollouts.table1_method, "
+                          "rollouts.ablation_methods or uq.methods (target `all`)")
     if "uq" in cfg:
         from crgpr.uq.settings import UQSettings
 

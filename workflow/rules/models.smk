@@ -7,7 +7,9 @@
 from crgpr.learning.learned import model_files as _model_files
 from crgpr.learning.learned import needed_model_jsons as _needed_model_jsons
 
-MODEL_JSONS = _needed_model_jsons(RESULTS, config["rollouts"]["methods"])
+# the models of the methods of `all` (rollouts.study_methods: `sweeps`, through their rollouts)
+MODEL_JSONS = _needed_model_jsons(RESULTS, {m: s for m, s in config["rollouts"]["methods"].items()
+                                            if m not in config["rollouts"]["study_methods"]})
 # settings shared by every model; each model also has its own entry (models.X, objective_models.Y)
 _GM_SHARED = [f"gradient_models.{k}" for k in config["gradient_models"]
               if k not in ("models", "objective_models")]
@@ -97,4 +99,4 @@ rule paper_hyp_lml:
         "../scripts/paper_hyp_lml.py"
 
 
-ALL_TARGETS.append(f"{RESULTS}/tables/paper_hyp_lml.csv")
+SWEEP_TARGETS.append(f"{RESULTS}/tables/paper_hyp_lml.csv")

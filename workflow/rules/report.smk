@@ -1,5 +1,5 @@
 # Reports: metrics of every rollout method in ROLLOUT_METHODS (common.smk; each stage extends
-# it) on the test angles (accuracy.parquet; the paper's Table III in table1_accuracy.csv and
+# it) on the test angles (accuracy.parquet; the studies of `sweeps` in accuracy_studies.parquet; the paper's Table III in table1_accuracy.csv and
 # Table V in table4_ablation.csv); CR-GPR figures (paper Figs. 3-5); Table II; the baseline
 # comparison; the timing table (Table IV) from the benchmark files; every table and claim of
 # the paper beside ours.
@@ -11,7 +11,6 @@ rule metrics:
         gt=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
         rollouts=lambda wc: expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
                                    method=ROLLOUT_METHODS, angle=config["angles"]["test_deg"]),
-        variant_accuracy=lambda wc: list(VARIANT_METHODS.values()),
     output:
         accuracy=f"{RESULTS}/metrics/accuracy.parquet",
         table1=report(
@@ -26,7 +25,6 @@ rule metrics:
         ),
     params:
         methods=lambda wc: list(ROLLOUT_METHODS),
-        variant_methods=lambda wc: list(VARIANT_METHODS),
         angles=list(config["angles"]["test_deg"]),
         cfg=cfg_params("rod.L0", "rollouts.table1_method", "rollouts.ablation_methods"),
     log:
@@ -41,6 +39,38 @@ rule metrics:
         ENV
     script:
         "../scripts/metrics.py"
+
+
+# The studies of `snakemake sweeps` (rollouts.study_methods, variants.methods): same scoring.
+rule metrics_studies:
+    input:
+        code=code_closure("metrics_studies.py"),
+        gt=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        rollouts=expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
+                        method=STUDY_METHODS, angle=config["angles"]["test_deg"]),
+        variant_accuracy=lambda wc: list(VARIANT_METHODS.values()),
+    output:
+        accuracy=f"{RESULTS}/metrics/accuracy_studies.parquet",
+    params:
+        methods=STUDY_METHODS,
+        variant_methods=lambda wc: list(VARIANT_METHODS),
+        angles=list(config["angles"]["test_deg"]),
+        cfg=cfg_params("rod.L0"),
+    log:
+        "logs/metrics/accuracy_studies.log",
+    benchmark:
+        "benchmarks/metrics/accuracy_studies.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/metrics_studies.py"
+
+
+SWEEP_TARGETS.append(f"{RESULTS}/metrics/accuracy_studies.parquet")
 
 
 _FIG_ANGLE = config["rollouts"]["figure_angle_deg"]
@@ -93,7 +123,7 @@ ALL_TARGETS.extend([
     f"{RESULTS}/metrics/accuracy.parquet",
     f"{RESULTS}/tables/table1_accuracy.csv",
     f"{RESULTS}/tables/table4_ablation.csv",
-    *expand(f"{RESULTS}/figures/{{method}}_{{kind}}_{{angle}}.png", method=CRGPR_METHODS,
+    *expand(f"{RESULTS}/figures/{{method}}_{{kind}}_{{angle}}.png", method=MAIN_CRGPR_METHODS,
             kind=["overlays", "shapes", "energy"], angle=[_FIG_ANGLE]),
 ])
 rule table2:

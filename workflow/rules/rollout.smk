@@ -2,7 +2,10 @@
 # angle, with the ground truth's integrator, dt and boundary conditions.
 
 CRGPR_METHODS = list(config["rollouts"]["methods"])
-ROLLOUT_METHODS.extend(CRGPR_METHODS)
+# rollouts.study_methods: rolled out and scored by `snakemake sweeps` only (metrics_studies)
+STUDY_METHODS = [m for m in CRGPR_METHODS if m in config["rollouts"]["study_methods"]]
+MAIN_CRGPR_METHODS = [m for m in CRGPR_METHODS if m not in STUDY_METHODS]
+ROLLOUT_METHODS.extend(MAIN_CRGPR_METHODS)
 
 
 rule rollout:
@@ -32,6 +35,6 @@ rule rollout:
 
 
 ALL_TARGETS.extend(
-    expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=CRGPR_METHODS,
+    expand(f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet", method=MAIN_CRGPR_METHODS,
            angle=config["angles"]["test_deg"])
 )

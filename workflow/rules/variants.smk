@@ -62,10 +62,10 @@ use rule gradient_model as variant_gradient_model with:
         "benchmarks/variants/{variant}/models/{prefilter}/{model}.tsv"
 
 
-# rule rollout's command; a diverged rollout is recorded and scored (frozen), not fatal
+# rule rollout's command and script (a diverged rollout is written frozen and scored, as in rule rollout)
 rule variant_rollout:
     input:
-        code=code_closure("variant_rollout.py"),
+        code=code_closure("rollout.py"),
         models=lambda wc: v_model_files(wc.variant, wc.method),
     output:
         traj=f"{VROOT}/{{variant}}/rollouts/{{method}}/{{angle}}.parquet",
@@ -87,7 +87,7 @@ rule variant_rollout:
     conda:
         ENV
     script:
-        "../scripts/variant_rollout.py"
+        "../scripts/rollout.py"
 
 
 rule variant_metrics:

@@ -8,6 +8,4 @@ run_rule(snakemake, oracle_ablation.oracle_ablation,
          theta_closure=snakemake.params.theta_closure, model_dir=str(Path(snakemake.input.models[0]).parent),
          gt_train=snakemake.input.gt_train, gt_tests=list(snakemake.input.gt_tests),
          out_csv=snakemake.output.table, out_pointwise=snakemake.output.pointwise,
-         out_fig=snakemake.output.figure, exact_subset=snakemake.params.exact_subset,
-         exact_seed=snakemake.params.exact_seed, exact_tol=snakemake.params.exact_tol,
-         exact_check_every=snakemake.params.exact_check_every, out_gap=snakemake.output.gap)
+         learned_rollouts=list(snakemake.input.learned), out_fig=snakemake.output.figure)

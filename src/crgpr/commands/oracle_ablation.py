@@ -6,16 +6,12 @@ by ``learned.LearnedRod`` + ``integrator.run_hamiltonian`` on every test angle:
   written in the same features);
 * ``learned_<c>``: component ``c`` is the fitted GP as the ``cr_gpr`` rollout evaluates it
   (``gp.load_evaluator``: the model's saved rollout mean, exact or DTC), the other five are oracles;
-* ``all_learned``: the six fitted GPs (the ``cr_gpr`` model);
-* ``exact_dH_dtheta``: as ``learned_dH_dtheta`` but dH/dtheta is the EXACT posterior mean
-  (``gp.KernelMean.exact``, R&W eq. 2.41) of the fitted GP, its saved hyperparameters,
-  conditioned on a seeded subset of ``exact_subset`` training points (not the DTC mean).
+* ``all_learned``: the six fitted GPs, i.e. the ``cr_gpr`` model: its rollouts (rule
+  ``rollout``) are scored here, not integrated a second time.
 The angles of one variant are integrated as one batch (leading batch axis; a batch that
 diverges is rerun angle by angle and the diverged angles are recorded with NaN metrics).
-
-Gap table: at the ground-truth states of the test angles (every ``exact_check_every``-th record,
-t > 0), the RMS of DTC mean - exact subset mean of dH/dtheta and of each against the true H_theta,
-relative to the target's std there.
+Whether the learned components are the exact posterior means or an approximation is the
+models' ``rollout_mean`` (its error against the exact mean: ``table2_hyperparameters.csv``).
 
 Pointwise table: on the ground-truth training trajectory (exact simulator states), the RMS
 error of each oracle and of each learned component against the true discrete H_z
@@ -34,8 +30,8 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import rod_params, sim_settings
-from crgpr.gp import GP, KernelMean, load_evaluator
-from crgpr.io import read_parquet, write_csv
+from crgpr.gp import load_evaluator
+from crgpr.io import read_metadata, read_parquet, write_csv
 from crgpr.learning import features as ft
 from crgpr.learning.learned import LearnedRod
 from crgpr.learning.oracle import ORACLE_COMPONENTS, mixed_components, oracle_components
@@ -50,59 +46,10 @@ log = logging.getLogger(__name__)
 
 
 def variants() -> dict[str, tuple[str, ...]]:
-    """Variant name -> names of the LEARNED components (the rest are oracles)."""
+    """Variant name -> names of the LEARNED components (the rest are oracles); ``all_learned`` aside."""
     out: dict[str, tuple[str, ...]] = {"all_oracle": ()}
     out.update({f"learned_{c}": (c,) for c in ORACLE_COMPONENTS})
-    out["all_learned"] = ORACLE_COMPONENTS
     return out
-
-
-EXACT_VARIANTS: dict[str, tuple[str, ...]] = {"exact_dH_dtheta": ("dH_dtheta",)}
-
-
-def exact_subset_mean(stem: str | Path, n_subset: int, seed: int, tol: float
-                      ) -> tuple[KernelMean, np.ndarray]:
-    """Exact posterior mean of the saved GP ``stem`` conditioned on a seeded subset of its data.
-
-    Hyperparameters and standardisation are the saved ones; the subset is ``min(n_subset, n)``
-    rows drawn uniformly without replacement (``numpy.random.default_rng(seed)``), sorted.
-    Returns the mean and the chosen row indices.
-    """
-    gp = GP.load(stem)
-    m = min(int(n_subset), gp.n)
-    idx = np.sort(np.random.default_rng(seed).choice(gp.n, size=m, replace=False))
-    sub = GP(kernel=gp.kernel, ard=gp.ard, basis=gp.basis, sigma_f=gp.sigma_f, lengthscales=gp.lengthscales,
-             sigma_n=gp.sigma_n, x_mean=gp.x_mean, x_scale=gp.x_scale, y_mean=gp.y_mean, y_scale=gp.y_scale,
-             X=gp.X[idx], Y=gp.Y[idx], lml=float("nan"), info=dict(gp.info))
-    return KernelMean.exact(sub, tol=tol), idx
-
-
-def _theta_states(gt: Trajectory, P: RodParams, every: int, center: float | None):
-    q, p = gt.q[1::every], gt.p[1::every]
-    hz = np.array([variational_derivative(a, b, P) for a, b in zip(q, p, strict=True)])
-    X = ft.paper_theta_features(q[..., 0], q[..., 1], q[..., 2], P.ds, center)
-    return X, hz[:, 1:, 2]
-
-
-def exact_gap(gts: dict[float, Trajectory], P: RodParams, dtc: Any, exact: Any, center: float | None,
-              every: int) -> pd.DataFrame:
-    """RMS of DTC - exact, DTC - truth, exact - truth of dH/dtheta over std(truth); per angle, pooled."""
-    rows, pooled = [], []
-    for a, gt in gts.items():
-        X, tgt = _theta_states(gt, P, every, center)
-        d = np.asarray(Flat(dtc)(X)).reshape(tgt.shape)
-        e = np.asarray(Flat(exact)(X)).reshape(tgt.shape)
-        pooled.append((d.ravel(), e.ravel(), tgt.ravel()))
-        rows.append((f"{a:g}", d.ravel(), e.ravel(), tgt.ravel()))
-    rows.append(("all", *(np.concatenate([p[k] for p in pooled]) for k in range(3))))
-    out = []
-    for name, d, e, t in rows:
-        std = float(np.std(t))
-        rms = lambda v: float(np.sqrt(np.mean(v**2)))  # noqa: E731
-        out.append({"theta0_deg": name, "n_rows": int(t.size), "target_std": std,
-                    "dtc_minus_exact_over_std": rms(d - e) / std, "dtc_rmse_over_std": rms(d - t) / std,
-                    "exact_rmse_over_std": rms(e - t) / std})
-    return pd.DataFrame(out)
 
 
 class Flat:
@@ -195,10 +142,25 @@ def run_variant(variant: str, names: tuple[str, ...], sources: dict[str, Any], P
     return rows
 
 
+def learned_rows(rollouts: list[str], gts: dict[float, pd.DataFrame], L0: float) -> list[dict[str, Any]]:
+    """Variant ``all_learned``: the ``cr_gpr`` rollouts (rule ``rollout``) scored like the others."""
+    rows = []
+    for path in rollouts:
+        df = read_parquet(path)
+        a = float(df["theta0_deg"].iloc[0])
+        row: dict[str, Any] = {"variant": "all_learned", "learned": " ".join(ORACLE_COMPONENTS),
+                               "theta0_deg": a}
+        row.update(accuracy(gts[a], df, L0, f"ground truth {a:g}", f"cr_gpr {a:g}"))
+        row["status"] = "ok"
+        row["seconds_batch"] = float(read_metadata(path).get("seconds", math.nan))
+        row["learned_evaluator"] = f"cr_gpr rollout {Path(path).name}"
+        rows.append(row)
+    return rows
+
+
 def oracle_ablation(cfg: dict[str, Any], theta_closure: str, model_dir: str, gt_train: str,
-                    gt_tests: list[str], out_csv: str, out_pointwise: str, out_fig: str,
-                    exact_subset: int, exact_seed: int, exact_tol: float, exact_check_every: int,
-                    out_gap: str) -> pd.DataFrame:
+                    gt_tests: list[str], learned_rollouts: list[str], out_csv: str, out_pointwise: str,
+                    out_fig: str) -> pd.DataFrame:
     """Run every variant on every test angle; write the two tables and the figure."""
     P, S = rod_params(cfg), sim_settings(cfg)
     mdir = Path(model_dir)
@@ -208,15 +170,14 @@ def oracle_ablation(cfg: dict[str, Any], theta_closure: str, model_dir: str, gt_
     for path in gt_tests:
         df = read_parquet(path)
         gts[float(df["theta0_deg"].iloc[0])] = df
-    exact, idx = exact_subset_mean(mdir / "dH_dtheta", exact_subset, exact_seed, exact_tol)
-    sources = {**learned, "dH_dtheta": Flat(exact)}
+    learned_all = learned_rows(learned_rollouts, gts, P.L0)
+    if sorted(r["theta0_deg"] for r in learned_all) != sorted(gts):
+        raise ValueError(f"oracle ablation: cr_gpr rollouts {learned_rollouts} not at the test angles")
     rows = []
     for variant, names in variants().items():
         rows += run_variant(variant, names, learned, P, S, center, theta_closure, gts,
                             f"{learned['dH_dtheta'].comp.kind} mean (load_evaluator)")
-    for variant, names in EXACT_VARIANTS.items():
-        rows += run_variant(variant, names, sources, P, S, center, theta_closure, gts,
-                            f"exact mean on {idx.size} seeded training points (seed {exact_seed})")
+    rows += learned_all
     table = pd.DataFrame(rows)
     table["theta_closure"] = theta_closure
     write_csv(table, out_csv)
@@ -224,11 +185,5 @@ def oracle_ablation(cfg: dict[str, Any], theta_closure: str, model_dir: str, gt_
     pw = pointwise_errors(train, P, learned, center, theta_closure)
     pw["trajectory"] = f"ground truth {train.theta0_deg:g} deg (exact simulator states, t > 0)"
     write_csv(pw, out_pointwise)
-    tests = {a: trajectory_from_frame(df, P) for a, df in gts.items()}
-    gap = exact_gap(tests, P, learned["dH_dtheta"].comp, exact, center, exact_check_every)
-    gap["exact_subset"] = idx.size
-    gap["exact_seed"] = exact_seed
-    write_csv(gap, out_gap)
     oracle_ablation_figure(table, pw, out_fig)
     return table
-

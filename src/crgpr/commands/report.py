@@ -28,10 +28,10 @@ from crgpr.report import timing as timing_mod
 log = logging.getLogger(__name__)
 
 
-def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
-            rollouts: list[str], variant_accuracy: dict[str, str], out: str, table1_out: str,
-            table4_out: str) -> None:
-    """Rule ``metrics``: accuracy.parquet of every method and angle, the paper's Tables III and V.
+def _accuracy_file(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
+                   rollouts: list[str], variant_accuracy: dict[str, str], out: str, kind: str
+                   ) -> pd.DataFrame:
+    """Score every (method, angle) rollout against the ground truth and write the accuracy file.
 
     ``ground_truth`` has one file per angle, ``rollouts`` one per (method, angle), method-major.
     ``variant_accuracy``: method -> a pipeline variant's accuracy file (rule ``variant_metrics``,
@@ -51,12 +51,26 @@ def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_t
         acc = pd.concat([acc, rows[rows["theta0_deg"].isin([float(a) for a in angles])][cols]],
                         ignore_index=True)
         provenance[path] = read_metadata(path).get("code_version")
-    methods = [*methods, *variant_accuracy]
-    write_parquet(acc, out, {"kind": "accuracy", "methods": methods, "angles": angles,
+    write_parquet(acc, out, {"kind": kind, "methods": [*methods, *variant_accuracy], "angles": angles,
                              "definitions": metrics_mod.__doc__, "inputs": provenance})
+    return acc
+
+
+def metrics(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
+            rollouts: list[str], out: str, table1_out: str, table4_out: str) -> None:
+    """Rule ``metrics``: accuracy.parquet of every method of `all` and angle, the paper's Tables
+    III and V (``_accuracy_file``)."""
+    acc = _accuracy_file(cfg, methods, angles, ground_truth, rollouts, {}, out, "accuracy")
     rc = cfg["rollouts"]
     write_csv(metrics_mod.table1(acc, rc["table1_method"], angles), table1_out, float_format="%.4f")
     write_csv(metrics_mod.table4(acc, list(rc["ablation_methods"])), table4_out, float_format="%.4f")
+
+
+def metrics_studies(cfg: dict[str, Any], methods: list[str], angles: list[int], ground_truth: list[str],
+                    rollouts: list[str], variant_accuracy: dict[str, str], out: str) -> None:
+    """Rule ``metrics_studies`` (target `sweeps`): accuracy_studies.parquet, the same columns as
+    accuracy.parquet, for ``rollouts.study_methods`` and the ``variants.methods``."""
+    _accuracy_file(cfg, methods, angles, ground_truth, rollouts, variant_accuracy, out, "accuracy_studies")
 
 
 def figures_crgpr(cfg: dict[str, Any], method: str, angle: float, gt_train: str, gt_test: str,

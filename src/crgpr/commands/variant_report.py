@@ -7,7 +7,6 @@ Algorithms: ``crgpr.report.metrics`` (the accuracy metrics of every method),
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
@@ -31,8 +30,6 @@ def variant_metrics(cfg: dict[str, Any], variant: str, method: str, angles: list
         raise FileNotFoundError(f"variant_metrics: rollouts missing among {rollouts}")
     metas = [read_metadata(r) for r in rollouts]
     acc.insert(0, "variant", variant)
-    acc["diverged"] = [bool(m.get("diverged", False)) for m in metas]
-    acc["t_diverged"] = [float(m["t_diverged"]) if m.get("diverged") else math.nan for m in metas]
     write_parquet(acc, out, {"kind": "variant_accuracy", "variant": variant, "method": method,
                              "angles": angles, "definitions": metrics_mod.__doc__,
                              "inputs": {r: m.get("code_version")

@@ -7,7 +7,8 @@ steps 1-4 of the paper's Sec. III-B (ground truth, prefilter, gradient GPs, test
 with the main rules and scripts on the overlaid config, under ``results/variants/{name}/``; a
 stage whose config values (the same dotted keys as the main rule's ``params: cfg=``) and inputs
 equal the main run's reuses the main run's file. This module holds the Snakefile-time part
-(overlaid configs, the keys of a rule's params) and rule ``variant_rollout``; the variants'
+(overlaid configs, the keys of a rule's params); a variant's rollouts are rule ``rollout``'s
+command (``learning.learned.run_rollout``, divergence included); the variants'
 metrics and the sensitivity table are ``crgpr.commands.variant_report``.
 """
 
@@ -16,17 +17,9 @@ from __future__ import annotations
 import copy
 import logging
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from crgpr.commands.rollout import rollout
-from crgpr.config import ConfigError, deep_merge, rod_params, sim_settings, validate_config
-from crgpr.io import write_parquet
-from crgpr.learning.learned import LearnedRod, learned_energy, method_spec
-from crgpr.physics.integrator import SimulationDiverged
-from crgpr.physics.simulate import Trajectory, trajectory_frame
+from crgpr.config import ConfigError, deep_merge, validate_config
 
 log = logging.getLogger(__name__)
 
@@ -90,40 +83,4 @@ def dotted_keys(subset: Mapping[str, Any], config: Mapping[str, Any], prefix: st
             keys.extend(dotted_keys(sub, full, f"{path}."))
     return keys
 
-
-def variant_rollout(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str,
-                    model_json: str) -> None:
-    """Rule ``variant_rollout``: rule ``rollout``'s command (step 4, eq. (17)) on a variant's models.
-
-    A variant explores settings the main run does not use, and one divergent setting must not
-    stop a sweep: a diverged rollout (the integrator's one divergence policy) is written as the
-    trajectory up to the last plausible record with that state frozen afterwards, as the black
-    box's (a bounded, conservative error for the metrics), with ``diverged``, ``t_diverged``
-    and ``node_diverged`` in its metadata; its energy file covers the records before it.
-    """
-    try:
-        rollout(cfg, method, angle, out, energy_out, model_json)
-        return
-    except SimulationDiverged as exc:
-        part = exc.partial
-        if part is None:
-            raise
-        diverged = exc
-    log.warning("%s", diverged)
-    spec = method_spec(cfg, method)
-    params, settings = rod_params(cfg), sim_settings(cfg)
-    n_rec = settings.n_steps // settings.record_every + 1
-    r = part.q.shape[0]
-    t = np.arange(n_rec) * settings.dt * settings.record_every
-    q = np.concatenate([part.q, np.repeat(part.q[-1:], n_rec - r, axis=0)])
-    p = np.concatenate([part.v, np.repeat(part.v[-1:], n_rec - r, axis=0)])
-    meta = {"kind": "rollout", "method": method, "theta0_deg": float(angle), "features": spec["features"],
-            "prefilter": spec["prefilter"], "model_dir": str(Path(model_json).parent),
-            "rod": params.to_dict(), "simulation": settings.to_dict(), "diverged": True,
-            "t_diverged": float(diverged.t), "node_diverged": int(diverged.node),
-            "step_diverged": int(diverged.step)}
-    write_parquet(trajectory_frame(Trajectory(float(angle), t, q, p, params)), out, meta)
-    model = LearnedRod.from_dir(Path(model_json).parent, spec["features"], params)
-    before = Trajectory(float(angle), part.t, part.q, part.v, params, part.dissipated)
-    write_parquet(learned_energy(model, before), energy_out, {**meta, "kind": "rollout_energy"})
 

@@ -39,7 +39,7 @@ import pandas as pd
 
 from crgpr.config import ConfigError, rod_params, sim_settings
 from crgpr.gp.evaluators import load_evaluator
-from crgpr.io import write_json, write_parquet
+from crgpr.io import write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
@@ -229,28 +229,49 @@ def needed_model_jsons(results: str, methods: dict[str, dict[str, str]]) -> list
     return sorted(out, key=lambda f: (f.split("/")[-2] != "gp", f))
 
 
+def frozen_after_divergence(part: Trajectory, settings: SimSettings) -> Trajectory:
+    """The rollout's one divergence policy: the records before the divergence, the last of them
+    held for the rest of the simulated time (a bounded, conservative error for the metrics)."""
+    n_rec = settings.n_steps // settings.record_every + 1
+    r = part.q.shape[0]
+    t = np.arange(n_rec) * settings.dt * settings.record_every
+    q = np.concatenate([part.q, np.repeat(part.q[-1:], n_rec - r, axis=0)])
+    p = np.concatenate([part.p, np.repeat(part.p[-1:], n_rec - r, axis=0)])
+    return Trajectory(part.theta0_deg, t, q, p, part.params)
+
+
 def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str | Path, out: str | Path,
                 energy_out: str | Path | None = None) -> Trajectory:
-    """Roll one method out at one angle; on divergence write ``{out}_diverged.json`` and raise."""
+    """Roll one method out at one angle (eq. (17)) and write it; returns the written trajectory.
+
+    A rollout that diverges (``SimulationDiverged``, the integrator's plausibility check) is a
+    result, not an error: the file holds ``frozen_after_divergence`` of it, with ``diverged``,
+    ``t_diverged``, ``node_diverged`` and ``step_diverged`` in its metadata (the metrics report
+    them), and the energy file covers the records before the divergence.
+    """
     spec = method_spec(cfg, method)
     params, settings = rod_params(cfg), sim_settings(cfg)
     model = LearnedRod.from_dir(model_dir, spec["features"], params)
     t0 = time.perf_counter()
-    record = Path(str(out).removesuffix(".parquet") + "_diverged.json")
+    meta: dict[str, Any] = {"kind": "rollout", "method": method, "theta0_deg": angle,
+                            "features": spec["features"], "prefilter": spec["prefilter"],
+                            "model_dir": str(model_dir), "rod": params.to_dict(),
+                            "simulation": settings.to_dict(), "diverged": False}
     try:
-        traj = rollout(model, angle, settings, what=f"{method} rollout at theta0 = {angle:g} deg")
+        traj = before = rollout(model, angle, settings, what=f"{method} rollout at theta0 = {angle:g} deg")
     except SimulationDiverged as exc:
-        write_json({"method": method, "theta0_deg": angle, "t_s": exc.t, "step": exc.step,
-                    "node": exc.node, "message": str(exc)}, record)
-        raise
-    if record.exists():
-        record.unlink()
-    secs = time.perf_counter() - t0
-    meta = {"kind": "rollout", "method": method, "theta0_deg": angle, "features": spec["features"],
-            "prefilter": spec["prefilter"], "model_dir": str(model_dir), "seconds": secs,
-            "rod": params.to_dict(), "simulation": settings.to_dict()}
-    log.info("%s at %g deg: %.1f s", method, angle, secs)
+        if exc.partial is None:
+            raise
+        log.warning("%s", exc)
+        p = exc.partial
+        before = Trajectory(float(angle), p.t, p.q, p.v, params, p.dissipated)
+        traj = frozen_after_divergence(before, settings)
+        meta.update(diverged=True, t_diverged=float(exc.t), node_diverged=int(exc.node),
+                    step_diverged=int(exc.step))
+    meta["seconds"] = time.perf_counter() - t0
+    log.info("%s at %g deg: %.1f s%s", method, angle, meta["seconds"],
+             f", diverged at t = {meta['t_diverged']:.4g} s" if meta["diverged"] else "")
     write_parquet(trajectory_frame(traj), out, meta)
     if energy_out is not None:
-        write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
+        write_parquet(learned_energy(model, before), energy_out, {**meta, "kind": "rollout_energy"})
     return traj

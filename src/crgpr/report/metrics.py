@@ -6,27 +6,30 @@ Definitions (global over the N free nodes 1..N and all recorded time samples):
     RMSE_tip / L    = sqrt(mean(|e_tip|^2)) / L0,  e_tip the Euclidean tip-position error
     Group-nRMSE     = mean over the six groups g in (x, y, theta, p_x, p_y, p_theta) of
                       sqrt(mean(eps_g^2)) / range(z_g),  range over the ground truth.
-``accuracy.parquet`` has one row per (method, theta0_deg) with columns ``ACCURACY_COLUMNS``.
+``accuracy.parquet`` has one row per (method, theta0_deg) with columns ``ACCURACY_COLUMNS``;
+``diverged`` / ``t_diverged`` come from the rollout's metadata (a diverged learned rollout is
+scored frozen after its last plausible record: ``learning.learned.run_rollout``).
 The functions are generic in the method name, so baselines and UQ reuse them.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from crgpr.io import frame_to_grid, read_parquet
+from crgpr.io import frame_to_grid, read_metadata, read_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
 log = logging.getLogger(__name__)
 
 ACCURACY_COLUMNS: tuple[str, ...] = ("method", "theta0_deg", "rmse_theta", "r2_theta", "tip_rmse_over_L",
-                                     "group_nrmse")
+                                     "group_nrmse", "diverged", "t_diverged")
 PAPER_TABLE1 = {"rmse_theta": {60: 0.316, 125: 0.244, 160: 0.224, 180: 0.210, 225: 0.144, 325: 0.193,
                                "mean": 0.222},
                 "r2_theta": {60: 0.924, 125: 0.951, 160: 0.934, 180: 0.928, 225: 0.900, 325: 0.876,
@@ -78,8 +81,11 @@ def accuracy_table(pairs: list[tuple[str, float, str, str]], L0: float) -> pd.Da
             continue
         gt = read_parquet(gt_path, required=TRAJECTORY_COLUMNS)
         pred = read_parquet(pred_path, required=("t", "node", *STATE_NAMES))
+        meta = read_metadata(pred_path)
         rows.append({"method": method, "theta0_deg": float(angle),
-                     **accuracy(gt, pred, L0, str(gt_path), str(pred_path))})
+                     **accuracy(gt, pred, L0, str(gt_path), str(pred_path)),
+                     "diverged": bool(meta.get("diverged", False)),
+                     "t_diverged": float(meta["t_diverged"]) if meta.get("diverged") else math.nan})
     return pd.DataFrame(rows, columns=list(ACCURACY_COLUMNS))
 
 
