@@ -25,7 +25,7 @@ from crgpr.uq.settings import UQSettings
 SETTINGS = UQSettings(methods=("m",), sampler="sparse_pathwise", n_samples=6, paper_n_samples=4,
                       n_features=64, inducing=40, levels=(50.0, 95.0), angles_deg=(125,),
                       figure_angle_deg=125, figure_level=95.0, figure_time_fractions=(1.0,),
-                      exact_check_max_n=300, check_points=50, posterior_scale="heldout_blocks",
+                      exact_check_max_n=300, check_points=50, posterior_scale="heldout_rms",
                       heldout_blocks=8, kernel_tol=0.0)
 
 
@@ -65,28 +65,32 @@ def test_scaled_spec_keeps_the_mean_and_scales_the_covariance() -> None:
 
 
 def test_heldout_blocks_calibrate_a_correct_model_and_widen_a_correlated_error() -> None:
-    """Data from the GP's own model: c within [0.8, 1.5] (deterministic seeds; ~600 held-out
+    """Data from the GP's own model: c within [0.8, 1.5] for both statistics, rms and the robust
+    median |z| / 0.6745 (deterministic seeds; ~600 held-out
     z, correlated within a block; c >= ~1 by construction, since noisy targets are compared with
     the latent predictive, which is conservative by sqrt(1 + sigma_n^2 / v)). The same data
     plus a smooth error of 0.8 (16 sigma_n) along time that is no function of the state (the
     orbit revisits its states): c > 1.8, the unscaled held-out 95 % coverage below 0.7, the
     scaled one above 0.9."""
     for seed in (0, 1, 2):
-        c, info = heldout_block_scale(_trajectory_gp(600, seed, 0.0), 8)
-        assert 0.8 < c < 1.5, (seed, c)
-        assert len(info["heldout_block_rms_z"]) == 8
+        for stat in ("rms", "median"):
+            c, info = heldout_block_scale(_trajectory_gp(600, seed, 0.0), 8, statistic=stat)
+            assert 0.8 < c < 1.5, (seed, stat, c)
+            assert len(info["heldout_block_rms_z"]) == 8
     spec = _trajectory_gp(600, 0, 0.8)
-    c, info = heldout_block_scale(spec, 8)
-    assert c > 1.8
+    c, info = heldout_block_scale(spec, 8, statistic="rms")
+    assert c > 1.8 and info["heldout_scale_median"] > 1.5
     assert info["heldout_coverage95_unscaled"] < 0.7 and info["heldout_coverage95_scaled"] > 0.9
-    c_sparse, _ = heldout_block_scale(spec, 8, spec.Xs[::5])  # the DTC posterior on 120 inducing inputs
+    c_sparse, _ = heldout_block_scale(spec, 8, spec.Xs[::5], "rms")  # DTC posterior, 120 inducing inputs
     assert c_sparse == pytest.approx(c, rel=0.25)
     with pytest.raises(ValueError, match="held-out blocks"):
         heldout_block_scale(spec, 1)
+    with pytest.raises(ValueError, match="statistic"):
+        heldout_block_scale(spec, 8, statistic="mean")
 
 
 def test_sampled_deviations_carry_the_heldout_scale() -> None:
-    """draw_model_samples with uq.posterior_scale = heldout_blocks: the samples' deviations from
+    """draw_model_samples with uq.posterior_scale = heldout_rms: the samples' deviations from
     the posterior mean are exactly c times those of posterior_scale = none (same seed), c is
     recorded in the diagnostics; the mean the samples scatter around is unchanged."""
     spec = _trajectory_gp(400, 3, 0.8)

@@ -645,7 +645,7 @@ def scaled_spec(spec: GP, c: float) -> GP:
                                 spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
 
 
-def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None
+def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median"
                         ) -> tuple[float, dict[str, Any]]:
     """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
 
@@ -653,11 +653,13 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None
     the training trajectory, whose rows are time-major); each block is predicted by the GP with
     the same hyperparameters conditioned on the other blocks (DTC posterior on the inducing
     inputs ``Z`` if given, else exact), giving residuals r_i = y_i - m_-b(x_i) and latent
-    variances v_i. c^2 = mean(r_i^2 / v_i) maximises the held-out predictive log-likelihood of
-    N(m_-b, c^2 v) (the latent predictive, because the targets' errors are correlated along the
-    trajectory: an iid noise term would average them away). Scaling sigma_f and sigma_n by c
-    (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean. Returns
-    (c, diagnostics with the held-out z quantiles before scaling).
+    variances v_i, z_i = r_i / sqrt(v_i) (the latent predictive, because the targets' errors are
+    correlated along the trajectory: an iid noise term would average them away). ``statistic``
+    'rms': c^2 = mean(z_i^2), which maximises the held-out Gaussian log-likelihood of
+    N(m_-b, c^2 v); 'median': c = median |z_i| / 0.6745 (the robust scale: the held-out z are
+    heavy-tailed, a few extrapolated blocks dominate their mean square). Scaling sigma_f and
+    sigma_n by c (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean.
+    Returns (c, diagnostics with the held-out z statistics).
     """
     n = spec.Xs.shape[0]
     if not 2 <= n_blocks <= n // 2:
@@ -674,8 +676,13 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None
         r = spec.to_output(spec.y[te]) - m
         z_all.append(r / np.sqrt(np.maximum(v, 1e-300)))
     z = np.concatenate(z_all)
-    c = float(np.sqrt(np.mean(z**2)))
-    info = {"posterior_scale": c, "heldout_blocks": int(n_blocks),
+    c_rms = float(np.sqrt(np.mean(z**2)))
+    c_med = float(np.median(np.abs(z)) / 0.6744897501960817)
+    if statistic not in ("rms", "median"):
+        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; expected 'rms' or 'median'")
+    c = c_rms if statistic == "rms" else c_med
+    info = {"posterior_scale": c, "heldout_statistic": statistic, "heldout_scale_rms": c_rms,
+            "heldout_scale_median": c_med, "heldout_blocks": int(n_blocks),
             "heldout_median_abs_z": float(np.median(np.abs(z))),
             "heldout_coverage95_unscaled": float(np.mean(np.abs(z) < 1.959964)),
             "heldout_coverage95_scaled": float(np.mean(np.abs(z) < 1.959964 * c)),

@@ -173,15 +173,17 @@ _subset = subset_spec
 
 def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None) -> tuple[float, dict[str, Any]]:
     """The factor c of the sampled posterior's sd (``uq.posterior_scale``): 1 for 'none'; for
-    'heldout_blocks' c from ``crgpr.gp.sampling.heldout_block_scale`` with ``uq.heldout_blocks``
-    contiguous (time) blocks, on the inducing inputs ``Z`` when the sampler is sparse."""
+    'heldout_median' / 'heldout_rms' c from ``crgpr.gp.sampling.heldout_block_scale`` with
+    ``uq.heldout_blocks`` contiguous (time) blocks, on the inducing inputs ``Z`` when the sampler
+    is sparse."""
     if settings.posterior_scale == "none":
         return 1.0, {"posterior_scale": 1.0, "posterior_scale_source": "none (fitted posterior)"}
     t0 = time.perf_counter()
+    stat = settings.posterior_scale.removeprefix("heldout_")
     c, info = heldout_block_scale(spec, settings.heldout_blocks,
-                                  Z if settings.sampler == "sparse_pathwise" else None)
-    info["posterior_scale_source"] = ("held-out contiguous blocks of the training rows, "
-                                      "c^2 = mean held-out z^2 (latent predictive)")
+                                  Z if settings.sampler == "sparse_pathwise" else None, stat)
+    info["posterior_scale_source"] = (f"held-out contiguous blocks of the training rows, {stat} of the "
+                                      "held-out z (latent predictive)")
     info["posterior_scale_seconds"] = time.perf_counter() - t0
     return c, info
 
