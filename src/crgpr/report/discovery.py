@@ -179,7 +179,12 @@ def summary(cases: list[str], truths: list[str], results: list[str], min_gap_rad
             "gap_after_rad": res["gap_after"],
             "tip_gap_before": res["tip_gap_before"], "tip_gap_after": res["tip_gap_after"],
             "explained_fraction": res["explained_fraction"],
+            "explained_excess_fraction": res.get("explained_excess_fraction"),
             "residual_peak_s_m": res["where"]["residual_moment_peak_s_m"],
+            "local_stiffness_peak_s_m": res["where"].get("local_stiffness_peak_s_m"),
+            "local_stiffness_peak_error": (res["where"].get("local_stiffness_error") or {}).get(
+                "peak_relative_error"),
+            "worst_window_s": "-".join(f"{v:.2g}" for v in res["where"]["time_window_s"]),
             "runtime_s": res["timing_s"]["total"],
         })
     df = pd.DataFrame(rows)

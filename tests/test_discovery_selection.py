@@ -1,0 +1,149 @@
+"""Missing-physics selection mechanics on arrays (fast; no simulation of the workflow).
+
+The end-to-end cases (tests/test_discovery.py) check the same mechanisms on camera records;
+these tests pin each one down on data whose answer is known exactly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from paper_rod import paper_rod
+
+from crgpr.config import load_config
+from crgpr.discovery.residual import Residual
+from crgpr.discovery.selection import (
+    DiscoverySettings,
+    TrajectoryFit,
+    eliminate,
+    local_stiffness_error,
+    time_windows,
+    trajectory_delta_bic,
+)
+from crgpr.physics.rod import segment_EI
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def st() -> DiscoverySettings:
+    return DiscoverySettings.from_config(load_config(ROOT / "config.yaml")["discovery"], seed=1)
+
+
+# --------------------------------------------------------------------------------------------
+# localisation of a stiffness defect along s (instrumental-variable regression per segment)
+# --------------------------------------------------------------------------------------------
+def _bending_record(defect: dict[int, float], seed: int = 0, n_t: int = 400):
+    """Residual of a rod whose segment j is softer by the fraction defect[j] than nominal.
+
+    The model's curvature is a decaying first-mode swing (zero at the free tip); the measured
+    curvature adds camera noise (errors in variables) and the dynamic moment acceleration noise
+    that grows towards the base, as on camera data."""
+    p = paper_rod()
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, n_t)
+    s = p.s
+    shape = s / p.L0 - 0.5 * (s / p.L0) ** 2
+    theta = 1.2 * (np.cos(2 * np.pi * 2.0 * t) * np.exp(-t))[:, None] * shape
+    q = np.zeros((n_t, p.N + 1, 3))
+    q[..., 2] = theta[:, :] + 1.4
+    EI = segment_EI(p)
+    kappa = np.diff(q[..., 2], axis=-1) / p.ds
+    M = EI * kappa
+    X = M + 0.05 * np.abs(M).max() * rng.standard_normal(M.shape)  # EI x measured curvature
+    d = np.zeros(p.N)
+    for j, v in defect.items():
+        d[j] = v
+    grow = np.linspace(1.0, 0.2, p.N)  # acceleration noise of the dynamic moment, largest at the base
+    mb_dyn = (1.0 - d) * M + 0.03 * np.abs(M).max() * grow * rng.standard_normal(M.shape)
+    rho = X - mb_dyn
+    res = Residual(rho=rho, sig={"stiffness_scale": X}, base_y=np.zeros(n_t), base_sig=np.zeros(n_t),
+                   mb_const=X, mb_dyn=mb_dyn)
+    return p, res, q, d
+
+
+def test_local_stiffness_error_finds_a_defect_and_its_depth():
+    p, res, q, d = _bending_record({6: 0.4, 7: 0.6, 8: 0.4})
+    out = local_stiffness_error(res, q, p, slice(5, -5))
+    assert out["peak_s_m"] == pytest.approx(7.5 * p.ds)
+    assert out["peak_relative_error"] == pytest.approx(0.6, abs=0.1)
+    assert 5.5 * p.ds <= out["extent_s_m"][0] and out["extent_s_m"][1] <= 9.5 * p.ds
+    z = np.delete(np.array(out["z"]), [0, 6, 7, 8])
+    assert np.all(np.abs(z) < 4.5)  # nothing significant elsewhere, the free tip included
+
+
+def test_local_stiffness_error_is_unbiased_at_the_free_tip():
+    """Ordinary least squares on the noisy measured curvature gives d -> 1 where the true
+    curvature vanishes (the free tip); the model-curvature instrument does not."""
+    p, res, q, _ = _bending_record({})
+    rows = slice(5, -5)
+    X, y = res.sig["stiffness_scale"][rows], res.rho[rows]
+    ols = (X * y).sum(0) / (X * X).sum(0)
+    out = local_stiffness_error(res, q, p, rows)
+    assert ols[-1] > 0.5  # the errors-in-variables artefact the instrument removes
+    assert abs(out["relative_error"][-1]) < 0.3
+    assert max(abs(v) for v in out["z"]) < 4.5  # nothing localised on effect-free data
+
+
+# --------------------------------------------------------------------------------------------
+# backward elimination (nested-model test on the joint fit)
+# --------------------------------------------------------------------------------------------
+class _StubFitter:
+    """Trajectory fits whose residual sum of squares depends on the named effects only: the
+    data hold tip_mass and viscous_drag; rest_curvature is a proxy that helps only while one
+    of them is missing."""
+
+    n = 2000
+
+    def _rss(self, names: list[str]) -> float:
+        rss = 1.0
+        rss += 0.0 if "tip_mass" in names else (0.5 if "rest_curvature" in names else 1.0)
+        rss += 0.0 if "viscous_drag" in names else 0.8
+        return rss
+
+    def fit(self, names, x0, x_std, max_nfev):
+        return TrajectoryFit(list(names), np.ones(len(names)), np.full(len(names), 0.1), np.zeros(8),
+                             np.zeros((1, 1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), self._rss(names),
+                             self.n, 1.0, 1)
+
+    def effect_size(self, fit, k):
+        others = [n for n in fit.names if n != k]
+        return float(np.sqrt(max(self._rss(others) - fit.rss, 0.0) / self.n))
+
+
+def test_backward_elimination_drops_a_proxy_once_the_true_effects_are_named(st):
+    f = _StubFitter()
+    cur = f.fit(["rest_curvature", "viscous_drag", "tip_mass"], None, None, 0)
+    out, records = eliminate(f, cur, "tip_mass", gap_before=0.05, st=st)
+    assert out.names == ["viscous_drag", "tip_mass"]
+    dropped = [r["effect"] for r in records if r["dropped"]]
+    assert dropped == ["rest_curvature"]
+    kept = [r for r in records if r["effect"] == "viscous_drag"]
+    assert kept and all(r["trajectory_delta_bic"] >= st.bic_min_improvement for r in kept)
+
+
+def test_backward_elimination_keeps_every_needed_effect(st):
+    f = _StubFitter()
+    cur = f.fit(["viscous_drag", "tip_mass"], None, None, 0)
+    out, records = eliminate(f, cur, "tip_mass", gap_before=0.05, st=st)
+    assert out.names == ["viscous_drag", "tip_mass"] and not any(r["dropped"] for r in records)
+
+
+def test_trajectory_delta_bic_is_a_nested_model_test():
+    f = _StubFitter()
+    small, big = f.fit(["tip_mass"], None, None, 0), f.fit(["tip_mass", "viscous_drag"], None, None, 0)
+    same = f.fit(["tip_mass", "rest_curvature"], None, None, 0)
+    assert trajectory_delta_bic(small, big) > 10.0
+    assert trajectory_delta_bic(small, same) < 0.0  # an extra parameter that changes nothing costs log n
+
+
+@pytest.mark.parametrize("T, w", [(1.0, 0.1), (0.8, 0.1), (2.0, 0.1), (0.95, 0.1), (0.3, 0.1)])
+def test_time_windows_cover_the_record_without_a_one_sample_window(T, w):
+    t = np.arange(0.0, T + 1e-9, 0.004)
+    wins = time_windows(t, w)
+    masks = np.array([m for _, _, m in wins])
+    assert np.all(masks.sum(axis=0) == 1)  # every sample in exactly one window
+    assert min(m.sum() for m in masks) >= 0.5 * w / 0.004  # none degenerate (the last included)
+    assert wins[0][0] == 0.0 and wins[-1][1] == pytest.approx(t[-1])
