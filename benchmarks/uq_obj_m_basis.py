@@ -18,7 +18,7 @@ import numpy as np
 
 from crgpr.config import load_config, rod_params
 from crgpr.gp import KernelMean
-from crgpr.gp.sampling import sparse_posterior, spec_from_gp
+from crgpr.gp.sampling import heldout_block_scale, sparse_posterior, spec_from_gp
 from crgpr.io import read_parquet
 from crgpr.learning.gradient_models import ALL_MODELS, fit_model, model_spec, training_data
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
@@ -53,12 +53,16 @@ def main() -> None:
         print(arg, f"fit {time.perf_counter() - t0:.0f} s, lengthscales (std)",
               np.round(np.ravel(gp.lengthscales), 3), "sigma_f", gp.sigma_f, "sigma_n", gp.sigma_n,
               flush=True)
-        post = sparse_posterior(spec_from_gp(gp, "obj_m"), arrays["dtc_Z"])
+        gspec = spec_from_gp(gp, "obj_m")
+        post = sparse_posterior(gspec, arrays["dtc_Z"])
+        c, cinfo = heldout_block_scale(gspec, int(cfg["uq"]["heldout_blocks"]), arrays["dtc_Z"])
+        print(f"  held-out-block scale c = {c:.3g}",
+              {k: v for k, v in cinfo.items() if k != "posterior_scale"}, flush=True)
         mean_fn = KernelMean.dtc(gp, arrays["dtc_Z"], arrays["dtc_w"], arrays["dtc_beta"])
         for a, (q, p) in tests.items():
             F = model_features(q, p, P, None)["obj_m"].reshape(-1, 5)
             err = true_targets(q, p, P)["obj_m"].reshape(-1) - mean_fn(F)
-            z = err / np.sqrt(post.mean_var(F)[1])
+            z = err / np.sqrt(post.mean_var(F)[1]) / c
             out = F[:, 0] > X[:, 0].max()
             o = (f"out {np.sqrt(np.mean(err[out] ** 2)):.2e} med|z| {np.median(np.abs(z[out])):.2f} "
                  f"cov95 {np.mean(np.abs(z[out]) < 1.96):.3f}") if out.any() else "out: none"

@@ -29,7 +29,8 @@ LEVELS = (50.0, 80.0, 90.0, 95.0)
 SETTINGS = UQSettings(methods=("cr_gpr",), sampler="sparse_pathwise", n_samples=8, paper_n_samples=4,
                       n_features=64, inducing=60, levels=LEVELS, angles_deg=(125,), figure_angle_deg=125,
                       figure_level=95.0, figure_time_fractions=(0.5, 1.0), exact_check_max_n=500,
-                      check_points=100)
+                      check_points=100, posterior_scale="none", heldout_blocks=5,
+                      kernel_tol=0.0)
 
 
 # ---------------------------------------------------------------------------------------------

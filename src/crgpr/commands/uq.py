@@ -62,7 +62,10 @@ def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, metho
     every ``uq.store_every``-th record of every sample (``UQ_COLUMNS``, float32 states)."""
     settings = UQSettings.from_section(dict(uq))
     params, sim = RodParams.from_dict(dict(rod)), _sim(simulation)
-    smp = load_samples({Path(p).stem: p for p in samples})
+    smp = load_samples({Path(p).stem: p for p in samples}, settings.kernel_tol)
+    bounds = {m: s.truncation_bound for m, s in smp.items() if hasattr(s, "truncation_bound")}
+    log.info("kernel sums truncated below %g sigma_f^2: |change| <= %s (output units)",
+             settings.kernel_tol, bounds)
     center = theta_center(models, method_cfg["features"])
     t0 = time.perf_counter()
     t, q, p, keep, diverged = rollout_samples(smp, method_cfg["features"], params, center, float(angle), sim)
@@ -74,6 +77,7 @@ def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, metho
     df = df.astype({c: np.float32 for c in ("x", "y", "theta", "p_x", "p_y", "p_theta")})
     meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle, "features": method_cfg["features"],
             "n_samples": settings.n_samples, "n_diverged": len(diverged), "diverged": diverged,
+            "kernel_truncation_bound": bounds,
             "seconds_rollout": secs, "store_every": k, "settings": settings.to_dict(),
             "rod": params.to_dict(), "simulation": sim.to_dict()}
     write_parquet(df, out, meta)

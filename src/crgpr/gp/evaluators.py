@@ -252,6 +252,14 @@ def _truncated_sum(Ql, ZT, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out
         out[i] = acc
 
 
+@njit(cache=True, fastmath=True)
+def truncated_sum_batch(xl, ZT, a, key1, starts, lo0, h, k0, k1, rcut, kernel_id, out):
+    """``_truncated_sum`` for S weight vectors: out[s, i] = sum_j a[s, j] k(xl[s, i], Z_j) /
+    sigma_f^2 over the centres with r <= rcut; xl (S, m, d), a (S, M) in the grid's order."""
+    for s in range(xl.shape[0]):
+        _truncated_sum(xl[s], ZT, a[s], key1, starts, lo0, h, k0, k1, rcut, kernel_id, out[s])
+
+
 class KernelMean:
     """f(x) = y_mean + y_scale (sigma_f^2 sum_m a_m k(u, z_m) + h(u)^T beta) (module docstring).
 
@@ -302,6 +310,7 @@ class KernelMean:
         self.h = max(0.5 * self.rcut, float(spread[self.k0]) / (4.0 * M), 1e-300)
         cell = np.floor((Ul[:, self.k0] - self.lo0) / self.h).astype(np.int64)
         order = np.lexsort((Ul[:, self.k1], cell))
+        self.order = order
         self.ZT_sorted = np.ascontiguousarray(Ul[order].T)
         self.a_sorted = np.ascontiguousarray(self.a[0, order])
         self.key1 = np.ascontiguousarray(self.ZT_sorted[self.k1])

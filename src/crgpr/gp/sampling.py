@@ -55,16 +55,18 @@ momentum GPs, which the rollout tabulates (uq.TabulatedSamples).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 from numba import njit
 
 from crgpr.gp._gpr import GP, basis_matrix_std, kernel_matrix
-from crgpr.gp.evaluators import _SE_POLY, kernel_sum_fast
+from crgpr.gp.evaluators import _SE_POLY, KernelMean, kernel_sum_fast, truncated_sum_batch
 from crgpr.gp.sparse import select_inducing
 
 log = logging.getLogger(__name__)
@@ -414,7 +416,9 @@ class CompressedSamples:
     per sample), ``w`` (S, D), ``Z`` (M, d) standardised inducing inputs, ``a`` (S, M),
     ``beta`` (S, p), plus the kernel hyperparameters, standardisation and basis name.
     Evaluation: the RFF sums in a compiled loop with a polynomial cosine, the kernel part as
-    a compiled loop with a polynomial exp (both vectorisable, no temporaries).
+    a compiled loop with a polynomial exp (both vectorisable, no temporaries). ``kernel_tol`` > 0
+    (``truncate``): the kernel part skips the centres with k < kernel_tol sigma_f^2, found on the
+    cell grid of ``crgpr.gp.KernelMean`` (same polynomial exp); |change| <= ``truncation_bound``.
     """
 
     omega: np.ndarray
@@ -430,6 +434,7 @@ class CompressedSamples:
     basis: str
     y_mean: float = 0.0
     y_scale: float = 1.0
+    kernel_tol: float = 0.0
 
     def __post_init__(self) -> None:
         self.omega = np.ascontiguousarray(self.omega, dtype=float)
@@ -440,6 +445,21 @@ class CompressedSamples:
         self._omegaT = np.ascontiguousarray(np.transpose(self.omega, (0, 2, 1)))
         self._scale = math.sqrt(2.0 * self.sigma_f**2 / self.omega.shape[1])
         self._a = np.ascontiguousarray(self.a, dtype=float)
+        self._grid: KernelMean | None = None
+        #: bound on |truncated - dense kernel part| at any input, output units
+        self.truncation_bound = 0.0
+        if self.kernel_tol > 0:
+            M = self.Z.shape[0]
+            g = KernelMean("se", "none", self.sigma_f, self.lengthscales, self.x_mean, self.x_std, 0.0, 1.0,
+                           self.Z, np.zeros(M), np.zeros(0), tol=self.kernel_tol)
+            self._grid = g
+            self._a_sorted = np.ascontiguousarray(self._a[:, g.order])
+            self.truncation_bound = float(self.kernel_tol * self.sigma_f**2 * self.y_scale
+                                          * np.abs(self._a).sum(1).max())
+
+    def truncate(self, kernel_tol: float) -> CompressedSamples:
+        """The same samples evaluated with kernel sums truncated below kernel_tol sigma_f^2."""
+        return dataclasses.replace(self, kernel_tol=float(kernel_tol))
 
     @property
     def n_samples(self) -> int:
@@ -467,8 +487,15 @@ class CompressedSamples:
         S, m, d = xs.shape
         out = np.empty((S, m))
         _rff_sum_t(xs, self._omegaT, self.phase, self.w, self._scale, out)
-        kernel_sum_fast(np.ascontiguousarray(xs / self.lengthscales), self._ZlT, self._a, self.sigma_f**2,
-                        _SE_POLY, out)
+        xl = np.ascontiguousarray(xs / self.lengthscales)
+        g = self._grid
+        if g is None:
+            kernel_sum_fast(xl, self._ZlT, self._a, self.sigma_f**2, _SE_POLY, out)
+        else:
+            ks = np.empty((S, m))
+            truncated_sum_batch(xl, g.ZT_sorted, self._a_sorted, g.key1, g.starts, g.lo0, g.h, g.k0, g.k1,
+                                g.rcut, 0, ks)
+            out += self.sigma_f**2 * ks
         if self.beta.shape[1]:
             H = basis_matrix(xs.reshape(S * m, d), self.basis).reshape(S, m, -1)
             out += np.einsum("smp,sp->sm", H, self.beta)
@@ -600,3 +627,64 @@ def compression_error(samples: PathwiseSamples, comp: CompressedSamples, x: np.n
             "max_rel_sd": float(np.abs(err / sd).max()),
             "rms_rel_sd": float(np.sqrt(np.mean((err / sd) ** 2))),
             "post_sd_median": float(np.median(sd))}
+
+
+def subset_spec(spec: GP, idx: np.ndarray) -> GP:
+    """The same GP (hyperparameters, standardisation) conditioned on the rows ``idx`` only."""
+    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+
+
+def scaled_spec(spec: GP, c: float) -> GP:
+    """The GP with sigma_f and sigma_n both multiplied by ``c``: the posterior mean is unchanged
+    (K_y^-1 scales by c^-2, k_* by c^2; the vague-prior basis coefficients likewise) and the
+    posterior covariance of f, basis part included, is multiplied by c^2 (R&W eq. 2.42)."""
+    if not c > 0:
+        raise ValueError(f"{spec.name}: posterior scale must be > 0, got {c}")
+    return GP.from_standardised(spec.Xs, spec.y, c * spec.sigma_f, spec.ell, c * spec.sigma_n, spec.basis,
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+
+
+def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median"
+                        ) -> tuple[float, dict[str, Any]]:
+    """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
+
+    The rows are split into ``n_blocks`` contiguous blocks (for the gradient GPs: time blocks of
+    the training trajectory, whose rows are time-major); each block is predicted by the GP with
+    the same hyperparameters conditioned on the other blocks (DTC posterior on the inducing
+    inputs ``Z`` if given, else exact), giving residuals r_i = y_i - m_-b(x_i) and latent
+    variances v_i, z_i = r_i / sqrt(v_i) (the latent predictive, because the targets' errors are
+    correlated along the trajectory: an iid noise term would average them away). ``statistic``
+    'rms': c^2 = mean(z_i^2), which maximises the held-out Gaussian log-likelihood of
+    N(m_-b, c^2 v); 'median': c = median |z_i| / 0.6745 (the robust scale: the held-out z are
+    heavy-tailed, a few extrapolated blocks dominate their mean square). Scaling sigma_f and
+    sigma_n by c (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean.
+    Returns (c, diagnostics with the held-out z statistics).
+    """
+    n = spec.Xs.shape[0]
+    if not 2 <= n_blocks <= n // 2:
+        raise ValueError(f"{spec.name}: {n_blocks} held-out blocks for n = {n} rows")
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    z_all = []
+    for b in range(n_blocks):
+        te = np.arange(edges[b], edges[b + 1])
+        tr = np.concatenate([np.arange(0, edges[b]), np.arange(edges[b + 1], n)])
+        sub = subset_spec(spec, tr)
+        post = sparse_posterior(sub, Z) if Z is not None else exact_posterior(sub)
+        x_te = spec.Xs[te] * spec.x_std + spec.x_mean
+        m, v = post.mean_var(x_te)
+        r = spec.to_output(spec.y[te]) - m
+        z_all.append(r / np.sqrt(np.maximum(v, 1e-300)))
+    z = np.concatenate(z_all)
+    c_rms = float(np.sqrt(np.mean(z**2)))
+    c_med = float(np.median(np.abs(z)) / 0.6744897501960817)
+    if statistic not in ("rms", "median"):
+        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; expected 'rms' or 'median'")
+    c = c_rms if statistic == "rms" else c_med
+    info = {"posterior_scale": c, "heldout_statistic": statistic, "heldout_scale_rms": c_rms,
+            "heldout_scale_median": c_med, "heldout_blocks": int(n_blocks),
+            "heldout_median_abs_z": float(np.median(np.abs(z))),
+            "heldout_coverage95_unscaled": float(np.mean(np.abs(z) < 1.959964)),
+            "heldout_coverage95_scaled": float(np.mean(np.abs(z) < 1.959964 * c)),
+            "heldout_block_rms_z": [float(np.sqrt(np.mean(zb**2))) for zb in z_all]}
+    return c, info

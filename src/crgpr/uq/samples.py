@@ -27,10 +27,13 @@ from crgpr.gp import GP
 from crgpr.gp.sampling import (
     CompressedSamples,
     exact_posterior,
+    heldout_block_scale,
     inducing_indices,
     pathwise_samples,
+    scaled_spec,
     se_kernel,
     sparse_posterior,
+    subset_spec,
 )
 from crgpr.gp.sampling import compress as compress_samples
 from crgpr.io import load_npz, write_json, write_npz
@@ -123,7 +126,8 @@ def select_samples(smp: SampleSet, keep: np.ndarray) -> SampleSet:
     arr = smp.to_arrays()
     for k in ("omega", "phase", "w", "a", "beta"):
         arr[k] = arr[k][keep]
-    return CompressedSamples.from_arrays(arr)
+    out = CompressedSamples.from_arrays(arr)
+    return out.truncate(smp.kernel_tol) if smp.kernel_tol > 0 else out
 
 
 # ----------------------------------------------------------------------------------------
@@ -164,9 +168,24 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
-def _subset(spec: GP, idx: np.ndarray) -> GP:
-    return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
-                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+_subset = subset_spec
+
+
+def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None) -> tuple[float, dict[str, Any]]:
+    """The factor c of the sampled posterior's sd (``uq.posterior_scale``): 1 for 'none'; for
+    'heldout_median' / 'heldout_rms' c from ``crgpr.gp.sampling.heldout_block_scale`` with
+    ``uq.heldout_blocks`` contiguous (time) blocks, on the inducing inputs ``Z`` when the sampler
+    is sparse."""
+    if settings.posterior_scale == "none":
+        return 1.0, {"posterior_scale": 1.0, "posterior_scale_source": "none (fitted posterior)"}
+    t0 = time.perf_counter()
+    stat = settings.posterior_scale.removeprefix("heldout_")
+    c, info = heldout_block_scale(spec, settings.heldout_blocks,
+                                  Z if settings.sampler == "sparse_pathwise" else None, stat)
+    info["posterior_scale_source"] = (f"held-out contiguous blocks of the training rows, {stat} of the "
+                                      "held-out z (latent predictive)")
+    info["posterior_scale_seconds"] = time.perf_counter() - t0
+    return c, info
 
 
 def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
@@ -185,7 +204,9 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     the interpolation error of the tabulated samples against the exact samples.
     """
     if spec.dim == 1 and grid is not None:
-        return _tabulated_samples(spec, settings, seed, grid)
+        c, cinfo = posterior_scale(spec, settings, None)
+        tab, info = _tabulated_samples(scaled_spec(spec, c) if c != 1.0 else spec, settings, seed, grid)
+        return tab, {**info, **cinfo}
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     n = spec.Xs.shape[0]
@@ -194,13 +215,16 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         Z, z_src = spec.Xs[idx], "farthest points (crgpr.gp.select_inducing)"
     else:
         idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
+    c, cinfo = posterior_scale(spec, settings, Z)
+    sspec = scaled_spec(spec, c) if c != 1.0 else spec
     info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
                             "inducing": int(Z.shape[0]), "inducing_source": z_src,
                             "sampler": settings.sampler, "n_features": settings.n_features,
                             "n_samples": settings.n_samples, "seed": seed}
     ra = getattr(spec, "rollout_arrays", {})
+    info.update(cinfo)
     if settings.sampler == "sparse_pathwise":
-        sp = sparse_posterior(spec, Z)
+        sp = sparse_posterior(sspec, Z)
         comp = sp.sample(settings.n_samples, settings.n_features, rng)
         if "dtc_w" in ra:
             # centre the samples exactly on the rollout's mean model: its DTC coefficients plus
@@ -208,14 +232,15 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
             # differ far from it, where K_ZZ's ill-conditioned directions and the basis
             # extrapolation dominate; see diagnostics centre_vs_rollout_*)
             beta_bar, a_bar = sp.mean_coefficients()
-            comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"])
+            # (dtc_w weights k(u, Z) of the unscaled kernel; the samples' kernel is c^2 k)
+            comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"]) / c**2
             comp.beta = comp.beta - beta_bar + np.ravel(ra["dtc_beta"])
             comp.__post_init__()
             info["centred_on"] = "the rollout's DTC mean (dtc_w, dtc_beta)"
     else:
         if idx is None:  # compression needs training-point indices: match Z to rows of X
             idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
-        smp = pathwise_samples(exact_posterior(spec), settings.n_samples, settings.n_features, rng)
+        smp = pathwise_samples(exact_posterior(sspec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
     info["sampling_s"] = time.perf_counter() - t0
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
@@ -225,6 +250,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         m_roll = spec.to_output(se_kernel(xc, Z, spec.sigma_f, spec.ell) @ np.ravel(ra["dtc_w"])
                                 + spec.basis_fn(xc) @ np.ravel(ra["dtc_beta"]))
         m_ours, v_ours = sp.mean_var(xc * spec.x_std + spec.x_mean)
+        v_ours = v_ours / c**2  # the unscaled posterior's variance
         info["sparse_mean_vs_rollout_mean_max_over_sd"] = float(
             np.max(np.abs(m_ours - m_roll) / np.sqrt(v_ours)))
         info["sparse_mean_vs_rollout_mean_max_abs"] = float(np.max(np.abs(m_ours - m_roll)))
@@ -253,7 +279,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         else:
             exact_f = smp(xr)
             approx_f = comp(np.broadcast_to(xr, (comp.n_samples, *xr.shape)))
-            err = (approx_f - exact_f) / sd_ex
+            err = (approx_f - exact_f) / (c * sd_ex)
             info["compression_err_max_over_sd"] = float(np.abs(err).max())
             info["compression_err_rms_over_sd"] = float(np.sqrt(np.mean(err**2)))
         info["exact_sd_median"] = float(np.median(sd_ex))
@@ -300,9 +326,12 @@ def sample_model(stem: str | Path, name: str, settings: UQSettings, seed: int, o
     return comp
 
 
-def load_samples(paths: dict[str, str | Path]) -> dict[str, SampleSet]:
-    """Sample sets by model name from their .npz files; all must have the same S."""
+def load_samples(paths: dict[str, str | Path], kernel_tol: float = 0.0) -> dict[str, SampleSet]:
+    """Sample sets by model name from their .npz files; all must have the same S.
+    ``kernel_tol`` > 0: kernel sums truncated below kernel_tol sigma_f^2 (CompressedSamples)."""
     out = {name: samples_from_arrays(load_npz(p)) for name, p in paths.items()}
+    if kernel_tol > 0:
+        out = {n: (s.truncate(kernel_tol) if isinstance(s, CompressedSamples) else s) for n, s in out.items()}
     sizes = {m: s.n_samples for m, s in out.items()}
     if len(set(sizes.values())) > 1:
         raise ValueError(f"UQ samples have different S per model: {sizes}")

@@ -8,6 +8,7 @@ from typing import Any
 from crgpr.config import ConfigError
 
 SAMPLERS = ("sparse_pathwise", "exact_pathwise")
+POSTERIOR_SCALES = ("heldout_median", "heldout_rms", "none")
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,9 @@ class UQSettings:
     figure_time_fractions: tuple[float, ...]
     exact_check_max_n: int
     check_points: int
+    posterior_scale: str
+    heldout_blocks: int
+    kernel_tol: float
 
     @classmethod
     def from_section(cls, u: dict[str, Any]) -> UQSettings:
@@ -43,9 +47,14 @@ class UQSettings:
                 angles_deg=tuple(int(a) for a in u["angles_deg"]),
                 figure_angle_deg=int(u["figure_angle_deg"]), figure_level=float(u["figure_level"]),
                 figure_time_fractions=tuple(float(f) for f in u["figure_time_fractions"]),
-                exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]))
+                exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]),
+                posterior_scale=str(u["posterior_scale"]), heldout_blocks=int(u["heldout_blocks"]),
+                kernel_tol=float(u["kernel_tol"]))
         if s.sampler not in SAMPLERS:
             raise ConfigError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
+        if s.posterior_scale not in POSTERIOR_SCALES:
+            raise ConfigError(f"config key uq.posterior_scale: {s.posterior_scale!r} is not one of "
+                              f"{POSTERIOR_SCALES}")
         if s.paper_n_samples > s.n_samples:
             raise ConfigError(f"config key uq.paper_n_samples: {s.paper_n_samples} > uq.n_samples "
                               f"= {s.n_samples} (the paper's row uses the first samples)")
