@@ -62,8 +62,8 @@ use rule gradient_model as variant_gradient_model with:
         "benchmarks/variants/{variant}/models/{prefilter}/{model}.tsv"
 
 
-# rule rollout's command and script (a diverged rollout is written frozen and scored, as in rule rollout)
-rule variant_rollout:
+# rule rollout itself (a diverged rollout is written frozen and scored, as in the main run)
+use rule rollout as variant_rollout with:
     input:
         code=code_closure("rollout.py"),
         models=lambda wc: v_model_files(wc.variant, wc.method),
@@ -80,14 +80,6 @@ rule variant_rollout:
         "logs/variants/{variant}/rollouts/{method}/{angle}.log",
     benchmark:
         "benchmarks/variants/{variant}/rollouts/{method}/{angle}.tsv"
-    threads: 1
-    resources:
-        mem_mb=500,
-        runtime=5,
-    conda:
-        ENV
-    script:
-        "../scripts/rollout.py"
 
 
 rule variant_metrics:
