@@ -53,6 +53,7 @@ from scipy.optimize import minimize
 KERNELS = ("se", "matern52")
 BASES = ("none", "constant", "linear", "pure_quadratic", "quadratic")
 SQRT5 = math.sqrt(5.0)
+KERNEL_ID = {"se": 0, "matern52": 1}
 _LOG2PI = math.log(2.0 * math.pi)
 
 
@@ -89,46 +90,43 @@ def kernel_matrix(kernel: str, A: np.ndarray, B: np.ndarray, sigma_f: float,
 
 
 @njit(cache=True)
-def _sym_kernel(U: np.ndarray, ell: np.ndarray, sf2: float, matern: bool) -> np.ndarray:
-    """k(U, U) (no noise), one pass over the pairs i > j (SE or Matern-5/2, R&W eqs. 4.9, 4.17)."""
-    n, d = U.shape
-    K = np.empty((n, n))
+def _fill_kernel(Ul, kernel_id, sf2, noise2, K):
+    """K = k(U, U) + noise2 I (lower triangle and diagonal) for scaled inputs, in place."""
+    n, d = Ul.shape
     for i in range(n):
-        K[i, i] = sf2
-        for j in range(i):
+        for j in range(i + 1):
             r2 = 0.0
             for k in range(d):
-                t = (U[i, k] - U[j, k]) / ell[k]
-                r2 += t * t
-            if matern:
+                dd = Ul[i, k] - Ul[j, k]
+                r2 += dd * dd
+            if kernel_id == 0:
+                v = sf2 * math.exp(-0.5 * r2)
+            else:
                 r = math.sqrt(r2)
                 v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
-            else:
-                v = sf2 * math.exp(-0.5 * r2)
             K[i, j] = v
-            K[j, i] = v
-    return K
+        K[i, i] += noise2
 
 
 @njit(cache=True)
-def _lengthscale_traces(U: np.ndarray, ell: np.ndarray, sf2: float, matern: bool,
-                        W: np.ndarray) -> np.ndarray:
-    """sum_ij W_ij dK_ij / d log ell_k for every input k (W symmetric), without forming dK."""
-    n, d = U.shape
+def _lengthscale_traces(Ul: np.ndarray, sf2: float, kernel_id: int, W: np.ndarray) -> np.ndarray:
+    """sum_ij W_ij dK_ij / d log ell_k for every input k (W symmetric; Ul = U / ell), without
+    forming dK: dK_ij / d log ell_k = base_ij (Ul_ik - Ul_jk)^2."""
+    n, d = Ul.shape
     g = np.zeros(d)
     t2 = np.empty(d)
     for i in range(n):
         for j in range(i):
             r2 = 0.0
             for k in range(d):
-                t = (U[i, k] - U[j, k]) / ell[k]
+                t = Ul[i, k] - Ul[j, k]
                 t2[k] = t * t
                 r2 += t2[k]
-            if matern:
+            if kernel_id == 0:
+                base = sf2 * math.exp(-0.5 * r2)
+            else:
                 r = math.sqrt(r2)
                 base = sf2 * (5.0 / 3.0) * (1.0 + SQRT5 * r) * math.exp(-SQRT5 * r)
-            else:
-                base = sf2 * math.exp(-0.5 * r2)
             w = 2.0 * W[i, j] * base
             for k in range(d):
                 g[k] += w * t2[k]
@@ -472,9 +470,10 @@ def _neg_lml(theta: np.ndarray, kernel: str, ard: bool, U: np.ndarray, V: np.nda
     n, k = V.shape
     if kernel not in KERNELS:
         raise GPError(f"unknown kernel {kernel!r}; expected one of {KERNELS}")
-    matern = kernel == "matern52"
-    K = _sym_kernel(np.ascontiguousarray(U, dtype=float), ell, sf * sf, matern)
-    K[np.diag_indices(n)] += sn**2
+    kid = KERNEL_ID[kernel]
+    Ul = np.ascontiguousarray(U / ell)
+    K = np.empty((n, n))
+    _fill_kernel(Ul, kid, sf * sf, sn**2, K)  # lower triangle and diagonal, noise included
     try:
         L = sla.cholesky(K, lower=True, check_finite=False)
     except np.linalg.LinAlgError:
@@ -498,8 +497,9 @@ def _neg_lml(theta: np.ndarray, kernel: str, ard: bool, U: np.ndarray, V: np.nda
     lml = -0.5 * np.einsum("ij,ij->", V, Alpha) - 0.5 * k * (logdet + logdetA) - 0.5 * k * (n - m) * _LOG2PI
     W = Alpha @ Alpha.T - k * P  # d lml / dth = 1/2 tr(W dK)
     trW = float(np.trace(W))
-    g = [np.einsum("ij,ij->", W, K) - sn**2 * trW]  # dK / d log sigma_f = 2 K (K here holds the noise)
-    gl = 0.5 * _lengthscale_traces(np.ascontiguousarray(U, dtype=float), ell, sf * sf, matern, W)
+    # dK / d log sigma_f = 2 K without the noise; K holds its lower triangle and the noisy diagonal
+    g = [2.0 * np.einsum("ij,ij->", W, np.tril(K, -1)) + sf * sf * trW]
+    gl = 0.5 * _lengthscale_traces(Ul, sf * sf, kid, W)
     g += list(gl) if ard else [float(gl.sum())]
     g.append(0.5 * trW * 2.0 * sn**2)
     return -lml, -np.asarray(g)

@@ -44,10 +44,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from crgpr.gp._gpr import GP, SQRT5, GPError, basis_matrix_std
+from crgpr.gp._gpr import GP, KERNEL_ID, SQRT5, GPError, _fill_kernel, basis_matrix_std
 
 BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
-KERNEL_ID = {"se": 0, "matern52": 1}
 _SE_POLY = 2  # kernel id of the SE kernel with the polynomial exp (kernel_sum_fast only)
 
 
@@ -160,25 +159,6 @@ def cutoff_radius(kernel: str, tol: float) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if k(mid) > tol else (lo, mid)
     return hi
-
-
-@njit(cache=True)
-def _fill_kernel(Ul, kernel_id, sf2, noise2, K):
-    """K = k(U, U) + noise2 I (lower triangle and diagonal) for scaled inputs, in place."""
-    n, d = Ul.shape
-    for i in range(n):
-        for j in range(i + 1):
-            r2 = 0.0
-            for k in range(d):
-                dd = Ul[i, k] - Ul[j, k]
-                r2 += dd * dd
-            if kernel_id == 0:
-                v = sf2 * math.exp(-0.5 * r2)
-            else:
-                r = math.sqrt(r2)
-                v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
-            K[i, j] = v
-        K[i, i] += noise2
 
 
 def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
