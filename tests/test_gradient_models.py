@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from crgpr.config import load_config, rod_params, sim_settings
-from crgpr.gp import KernelMean, dtc_fit, fit_gp, load_evaluator
+from crgpr.gp import GP, KernelMean, dtc_fit, fit_gp, load_evaluator
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import (
     PAPER_MODELS,
@@ -121,3 +121,25 @@ def test_prefilter_arrays_roundtrip(smoke):
 
     arr = prefiltered_arrays(pd.read_parquet(d / "fd85.parquet"))
     assert arr["x"].shape[1] == traj.params.N + 1
+
+
+@pytest.mark.parametrize("threshold, expect_exact", [(1.0e-2, False), (1.0e-14, True)])
+def test_rollout_mean_auto_integrates_dtc_only_where_it_equals_the_exact_mean(smoke, tmp_path,
+                                                                                threshold, expect_exact):
+    """``rollout_mean: auto``: a model whose DTC mean misses the exact mean by more than
+    ``dtc_max_error`` target std at a check set rolls out on the exact mean, else on DTC."""
+    cfg, _, d = smoke
+    cfg = json.loads(json.dumps(cfg))
+    cfg["gradient_models"].update(rollout_mean="auto", dtc_max_error=threshold)
+    meta = train_model(cfg, "q_x", d / "fd85.parquet", tmp_path / "q_x", "fd")
+    worst = max(e["max_abs"] for e in meta["dtc_error_vs_exact"].values()
+                if np.isfinite(e["max_abs"])) / meta["target_std"]
+    assert (worst > threshold) == expect_exact
+    with np.load(tmp_path / "q_x.npz", allow_pickle=False) as a:
+        assert ("mean_alpha" in a.files) == expect_exact
+    assert ("exact" if expect_exact else "dtc") in meta["rollout_mean_choice"]
+    X = np.load(tmp_path / "q_x.npz", allow_pickle=False)["X"][:50]
+    ev = load_evaluator(tmp_path / "q_x")
+    exact = KernelMean.exact(GP.load(tmp_path / "q_x"), tol=0.0)
+    err = np.max(np.abs(ev(X) - exact(X))) / meta["target_std"]
+    assert err <= (1e-9 if expect_exact else 10 * threshold)
