@@ -209,6 +209,27 @@ _CG_RTOL = 1e-13
 _CG_MAXITER = 60
 
 
+def _pivoted_rank(Ul: np.ndarray, kernel_id: int, sf2: float, trace_tol: float, rmax: int) -> int | None:
+    """Pivots a pivoted Cholesky of k(Ul, Ul) needs for a residual trace below trace_tol, or None
+    if more than rmax (the rank test of ``_lowrank_solve``)."""
+    n = Ul.shape[0]
+    dg = np.full(n, sf2)
+    L = np.zeros((n, min(n, rmax)))
+    col = np.empty(n)
+    r = 0
+    while dg.sum() > trace_tol:
+        if r == L.shape[1]:
+            return None
+        i = int(np.argmax(dg))
+        _kernel_column(Ul, i, kernel_id, sf2, col)
+        v = (col - L[:, :r] @ L[i, :r]) / math.sqrt(dg[i])
+        L[:, r] = v
+        dg = np.maximum(dg - v * v, 0.0)
+        dg[i] = 0.0
+        r += 1
+    return r
+
+
 def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B: np.ndarray
                    ) -> np.ndarray | None:
     """(K + noise2 I)^-1 B for a kernel matrix of small numerical rank, or None.
@@ -223,6 +244,14 @@ def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B:
     n = Ul.shape[0]
     if noise2 <= 0.0:
         return None
+    # a random subset of n_sub rows needing the rank cap already (at the same residual trace
+    # per row) means the full matrix needs more: decline before the O(n r^2) work
+    n_sub = min(n, 4 * _LOWRANK_MAX_RANK)
+    if n_sub < n:
+        sub = np.random.default_rng(0).choice(n, size=n_sub, replace=False)
+        if _pivoted_rank(np.ascontiguousarray(Ul[sub]), kernel_id, sf2, _LOWRANK_TRACE * noise2 * n_sub / n,
+                         _LOWRANK_MAX_RANK // 2) is None:
+            return None
     dg = np.full(n, sf2)
     rmax = min(n, _LOWRANK_MAX_RANK)
     L = np.zeros((n, rmax))
@@ -522,7 +551,8 @@ def load_model(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]
 def load_evaluator(stem: str | Path) -> KernelMean | Table1D:
     """The rollout evaluator of a saved model: ``table_x/table_y`` -> ``Table1D``;
     ``mean_alpha/mean_beta`` -> the exact posterior mean over all n training points
-    (``KernelMean``, truncation ``exact_tol`` of the JSON); ``dtc_Z/dtc_w/dtc_beta`` -> DTC
+    (``KernelMean``, truncation ``exact_tol`` of the JSON); ``rollout_pivots/rollout_w`` (the DTC mean
+    on a low-rank subset of its inducing inputs), else ``dtc_Z/dtc_w/dtc_beta`` -> DTC
     ``KernelMean``; else the exact mean (factorises once). The evaluator carries the model's
     JSON metadata as ``.meta``."""
     arr, meta = load_model(stem)
@@ -535,6 +565,9 @@ def load_evaluator(stem: str | Path) -> KernelMean | Table1D:
         U = (arr["X"].reshape(arr["X"].shape[0], -1) - arr["x_mean"]) / arr["x_scale"]
         ev = KernelMean(*args, U, arr["mean_alpha"], arr["mean_beta"], kind="exact",
                         tol=float(meta["exact_tol"]))
+    elif "rollout_pivots" in arr:  # the DTC mean on a low-rank subset of its inducing inputs
+        Zp = arr["dtc_Z"][arr["rollout_pivots"]]
+        ev = KernelMean(*args, Zp, arr["rollout_w"][:, 0], arr["dtc_beta"][:, 0], kind="dtc")
     elif "dtc_Z" in arr:
         ev = KernelMean(*args, arr["dtc_Z"], arr["dtc_w"][:, 0], arr["dtc_beta"][:, 0], kind="dtc")
     else:
