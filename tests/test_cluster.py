@@ -67,7 +67,7 @@ def test_benchmark_files_map_to_exactly_one_rule():
         "benchmarks/baselines/pinn_rollout/pinn_data_8/60.tsv": "pinn_rollout",
         "benchmarks/discovery/run_tip_mass.tsv": "discovery_run",
         "benchmarks/uq/cr_gpr_objective/samples/obj_m.tsv": "uq_samples",
-        "benchmarks/uq/cr_gpr/rollout/125.tsv": "uq_rollout",
+        "benchmarks/uq/cr_gpr/rollout.tsv": "uq_rollout",
     }
     for path, rule in examples.items():
         owners = [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)]
