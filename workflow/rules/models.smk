@@ -40,7 +40,7 @@ rule gradient_model:
         "benchmarks/models/{prefilter}/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=4500,
+        mem_mb=5000,
         runtime=20,
     conda:
         ENV
@@ -67,7 +67,7 @@ rule gradient_model_paper_hyp:
         "benchmarks/models/{prefilter}_paper_hyp/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=4500,
+        mem_mb=5000,
         runtime=10,
     conda:
         ENV

@@ -236,7 +236,7 @@ rule timing:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:
@@ -270,7 +270,7 @@ rule paper_tables:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:

@@ -27,7 +27,7 @@ rule rollout:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=5,
+        runtime=10,
     conda:
         ENV
     script:
