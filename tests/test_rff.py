@@ -18,7 +18,9 @@ from crgpr.gp.sampling import (
     inducing_indices,
     pathwise_covariance,
     pathwise_samples,
+    pivoted_cholesky,
     posterior_from_gp,
+    reduce_update_rank,
     sparse_posterior,
     weight_space_samples,
 )
@@ -193,3 +195,34 @@ def test_compiled_cosine_and_sample_evaluation() -> None:
         + np.sqrt(2.0 * comp.sigma_f**2 / 50) * np.cos(u @ comp.omega[s].T + comp.phase[s]) @ comp.w[s]
         + se_kernel(u, comp.Z, comp.sigma_f, comp.lengthscales) @ comp.a[s] for s in range(2)])
     np.testing.assert_allclose(comp(x3), spec.to_output(direct), rtol=1e-10, atol=1e-10 * spec.out_scale)
+
+
+def test_pivoted_cholesky_reproduces_the_matrix_to_its_tolerance() -> None:
+    """K ~ L L^T with the residual diagonal below tol max(diag K); L[P] lower triangular."""
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-1.0, 1.0, (200, 2))
+    K = np.exp(-0.5 * ((X[:, None] - X[None]) ** 2).sum(-1) / 0.8**2)
+    for tol in (1e-4, 1e-10):
+        piv, L = pivoted_cholesky(K, tol)
+        assert len(set(piv)) == len(piv) < 200
+        assert np.allclose(np.triu(L[piv], 1), 0.0)
+        assert np.max(np.diag(K - L @ L.T)) <= tol * (1 + 1e-6)
+        np.testing.assert_allclose(L @ L[piv].T, K[:, piv], atol=1e-12)
+
+
+@pytest.mark.parametrize(("ell", "reduced"), [(8.0, True), (0.05, False)])
+def test_update_rank_reduction_keeps_the_samples(ell: float, reduced: bool) -> None:
+    """A smooth kernel's update term k(u, Z) a_s lives on a few pivots of Z: the reduced samples
+    equal the full ones to a small fraction of the posterior sd; a rough kernel keeps ~all of Z."""
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-2.0, 2.0, (300, 2))
+    y = np.sin(X[:, 0]) + 0.2 * X[:, 1] + 0.01 * rng.standard_normal(300)
+    spec = GP.from_standardised(X, y, 1.0, [ell, ell], 0.01, "constant", np.zeros(2), np.ones(2), 0.0, 1.0)
+    sp = sparse_posterior(spec, X[inducing_indices(spec, 100, 0)])
+    comp = sp.sample(8, 64, np.random.default_rng(1))
+    red = reduce_update_rank(comp, 1e-14)
+    assert (red.Z.shape[0] <= 40) == reduced
+    xt = rng.uniform(-2.0, 2.0, (150, 2))
+    _, var = sp.mean_var(xt)
+    err = np.abs(red(np.broadcast_to(xt, (8, *xt.shape))) - comp(np.broadcast_to(xt, (8, *xt.shape))))
+    assert np.max(err / np.sqrt(var)) < 1e-3

@@ -72,6 +72,7 @@ rule camera_learn:
         "logs/camera/learn_{set}_{noise}mm_{prefilter}_{features}.log",
     benchmark:
         "benchmarks/camera/learn_{set}_{noise}mm_{prefilter}_{features}.tsv"
+    priority: 10  # long and ready early: started first, so short jobs fill the end of the run
     threads: 1
     resources:
         mem_mb=4750,

@@ -38,6 +38,7 @@ rule gradient_model:
         "logs/models/{prefilter}/{model}.log",
     benchmark:
         "benchmarks/models/{prefilter}/{model}.tsv"
+    priority: 10  # long and ready early: started first, so short jobs fill the end of the run
     threads: 1
     resources:
         mem_mb=5000,

@@ -31,6 +31,7 @@ rule pinn_train:
         "logs/baselines/pinn_train/{variant}.log",
     benchmark:
         "benchmarks/baselines/pinn_train/{variant}.tsv"
+    priority: 10  # long and ready early: started first, so short jobs fill the end of the run
     threads: 1  # torch on one thread: two threads on a shared 2-core box run 10x slower
     resources:
         mem_mb=3000,

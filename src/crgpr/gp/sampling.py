@@ -502,6 +502,38 @@ class CompressedSamples:
         return self.y_mean + self.y_scale * out
 
 
+def pivoted_cholesky(K: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Greedy pivoted Cholesky K ~ L L^T (Harbrecht et al. 2012): pivots P, in order, while the
+    largest residual diagonal exceeds tol max(diag K); L (M, r), L[P] lower triangular."""
+    M = K.shape[0]
+    d = np.diag(K).astype(float).copy()
+    top = float(d.max()) if M else 0.0
+    L = np.zeros((M, M))
+    piv: list[int] = []
+    for k in range(M):
+        i = int(np.argmax(d))
+        if not d[i] > tol * top:
+            break
+        piv.append(i)
+        col = (K[:, i] - L[:, :k] @ L[i, :k]) / math.sqrt(d[i])
+        L[:, k] = col
+        d -= col * col
+        d[piv] = 0.0
+    return np.array(piv, dtype=int), L[:, :len(piv)]
+
+
+def reduce_update_rank(comp: CompressedSamples, tol: float) -> CompressedSamples:
+    """The same samples with the update term k(u, Z) a_s on the pivoted-Cholesky subset Z_P of
+    Z (residual diagonal of K_ZZ below tol sigma_f^2): a'_s = K_PP^-1 K_PZ a_s (Nystrom), i.e.
+    k(u, Z) a_s -> k(u, Z_P) K_PP^-1 K_PZ a_s, exact at u in Z up to the dropped residual. For
+    a smooth kernel K_ZZ has a small numerical rank and the rollout's kernel part shrinks from
+    M to r terms; the caller measures the change (samples.py)."""
+    K = se_kernel(comp.Z, comp.Z, 1.0, comp.lengthscales)
+    piv, L = pivoted_cholesky(K, tol)
+    a = sla.solve_triangular(L[piv].T, L.T @ comp.a.T, lower=False, check_finite=False).T
+    return dataclasses.replace(comp, Z=comp.Z[piv].copy(), a=np.ascontiguousarray(a))
+
+
 def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8) -> CompressedSamples:
     """Fit k(x, Z) a_s to the exact update u_s(X) at all n training inputs (subset-of-regressors
     least squares). The ridge (ridge sigma_n)^2 a^T K_ZZ a only stabilises the solve: it must be

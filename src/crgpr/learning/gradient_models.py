@@ -211,8 +211,9 @@ def _use_exact_mean(gm: dict[str, Any], dtc_errs: dict[str, dict[str, float]], y
 def _choice_note(gm: dict[str, Any], use_exact: bool) -> str:
     if gm["rollout_mean"] != "auto":
         return f"rollout_mean {gm['rollout_mean']} (config)"
+    side = "above" if use_exact else "below"
     return (f"rollout_mean auto: {'exact' if use_exact else 'dtc'} (DTC's largest error at the check "
-            f"sets {'above' if use_exact else 'below'} dtc_max_error = {float(gm['dtc_max_error']):g} target std)")
+            f"sets {side} dtc_max_error = {float(gm['dtc_max_error']):g} target std)")
 
 
 def hyper_bounds(X: np.ndarray, hb: dict[str, Any]

@@ -30,6 +30,7 @@ from crgpr.gp.sampling import (
     heldout_block_scale,
     inducing_indices,
     pathwise_samples,
+    reduce_update_rank,
     scaled_spec,
     se_kernel,
     sparse_posterior,
@@ -242,6 +243,8 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
             idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
         smp = pathwise_samples(exact_posterior(sspec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
+    comp, rinfo = _reduced(comp, spec, settings, c, np.random.default_rng(seed + 3))
+    info.update(rinfo)
     info["sampling_s"] = time.perf_counter() - t0
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
         # our DTC posterior mean against the mean model the CR-GPR rollout integrates
@@ -288,6 +291,41 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
     info["seconds"] = time.perf_counter() - t0
     log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
+    return comp, info
+
+
+def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, rng: np.random.Generator
+             ) -> tuple[CompressedSamples, dict[str, Any]]:
+    """The samples on a low-rank subset of their inducing inputs (``reduce_update_rank`` with
+    ``uq.update_rank_tol``) if that changes no sample by more than ``uq.update_rank_max_error``
+    posterior sd at ``check_points`` random training inputs and is at most half the terms;
+    else unchanged. Same function draws, fewer kernel terms a rollout step."""
+    M = comp.Z.shape[0]
+    info: dict[str, Any] = {"update_terms": int(M)}
+    if settings.update_rank_tol <= 0:
+        info["update_rank"] = "not reduced (uq.update_rank_tol = 0)"
+        return comp, info
+    red = reduce_update_rank(comp, settings.update_rank_tol)
+    r = red.Z.shape[0]
+    n = spec.Xs.shape[0]
+    xs = spec.Xs[rng.choice(n, size=min(settings.check_points, n), replace=False)]
+    xr = xs * spec.x_std + spec.x_mean
+    X = np.broadcast_to(xr, (comp.n_samples, *xr.shape))
+    # the samples' posterior sd there (scaled posterior: c x the fitted one), from the ensemble's
+    # own kernel: DTC variance of the sampled GP
+    Zs = comp.Z
+    _, var = sparse_posterior(scaled_spec(spec, c) if c != 1.0 else spec, Zs).mean_var(xr)
+    sd = np.sqrt(np.maximum(var, 1e-300))
+    err = float(np.max(np.abs(red(X) - comp(X)) / sd))
+    info["update_rank_pivots"] = int(r)
+    info["update_rank_err_max_over_sd"] = err
+    if r <= M // 2 and err <= settings.update_rank_max_error:
+        info["update_terms"] = int(r)
+        info["update_rank"] = (f"reduced {M} -> {r} inducing inputs (pivoted Cholesky, residual < "
+                               f"{settings.update_rank_tol:g} sigma_f^2; max change {err:.1e} sd)")
+        return red, info
+    info["update_rank"] = (f"not reduced: {r} of {M} pivots, max change {err:.1e} sd "
+                           f"(uq.update_rank_max_error {settings.update_rank_max_error:g})")
     return comp, info
 
 

@@ -36,6 +36,8 @@ class UQSettings:
     posterior_scale: str
     heldout_blocks: int
     kernel_tol: float
+    update_rank_tol: float
+    update_rank_max_error: float
 
     @classmethod
     def from_section(cls, u: dict[str, Any]) -> UQSettings:
@@ -49,7 +51,8 @@ class UQSettings:
                 figure_time_fractions=tuple(float(f) for f in u["figure_time_fractions"]),
                 exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]),
                 posterior_scale=str(u["posterior_scale"]), heldout_blocks=int(u["heldout_blocks"]),
-                kernel_tol=float(u["kernel_tol"]))
+                kernel_tol=float(u["kernel_tol"]), update_rank_tol=float(u["update_rank_tol"]),
+                update_rank_max_error=float(u["update_rank_max_error"]))
         if s.sampler not in SAMPLERS:
             raise ConfigError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
         if s.posterior_scale not in POSTERIOR_SCALES:
