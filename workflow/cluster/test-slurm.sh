@@ -264,7 +264,7 @@ run_timed() {  # run_timed NAME LOG CMD...: CMD under timeout, its output in LOG
     timeout --kill-after=30 "$TIMEOUT" "$@" > "$out" 2>&1 || rc=$?
     if [[ $rc != 0 ]]; then
         tail -40 "$out" >&2
-        [[ $rc == 124 || $rc == 137 ]] && die "$name did not finish in ${TIMEOUT} s"
+        [[ $rc == 124 || $rc == 137 ]] && die "$name timed out (${TIMEOUT} s) or was stopped (exit $rc)"
         die "$name failed (exit $rc)"
     fi
 }
