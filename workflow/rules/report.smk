@@ -237,7 +237,7 @@ rule timing:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:
@@ -271,7 +271,7 @@ rule paper_tables:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:

@@ -143,7 +143,7 @@ rule uq_figure:
         "benchmarks/uq/figure/{method}_{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV
@@ -168,7 +168,7 @@ rule uq_reliability:
     threads: 1
     resources:
         mem_mb=1000,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:
