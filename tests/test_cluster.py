@@ -248,11 +248,16 @@ def test_slurm_script_skips_with_one_line_where_it_cannot_run(tmp_path):
 
 
 def test_benchmark_file_matching_two_patterns_goes_to_the_more_specific_rule():
-    rules = rule_resources.parse_rules(ROOT / "workflow" / "rules")
+    generic = rule_resources.Rule("rollout", "", benchmark="benchmarks/rollouts/{method}/{angle}.tsv")
+    camera = rule_resources.Rule("camera_rollout", "",
+                                 benchmark="benchmarks/rollouts/cr_gpr_objective_camera/{angle}.tsv")
     path = "benchmarks/rollouts/cr_gpr_objective_camera/125.tsv"
-    matching = [r for r in rules.values() if r.benchmark and r.pattern().match(path)]
+    matching = [r for r in (generic, camera) if r.pattern().match(path)]
     assert {r.name for r in matching} == {"rollout", "camera_rollout"}
     assert [r.name for r in rule_resources.most_specific(matching)] == ["camera_rollout"]
+    # the workflow's own rules: that file has one owner
+    rules = rule_resources.parse_rules(ROOT / "workflow" / "rules")
+    assert [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)] == ["camera_rollout"]
 
 
 @pytest.mark.parametrize(

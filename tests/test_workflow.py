@@ -149,7 +149,8 @@ UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
         # (the paper-hyperparameter models search nothing: they and their rollouts stay)
         ("  n_hyper: 100\n  n_restarts: 1\n  hyper_bounds",
          "  n_hyper: 120\n  n_restarts: 1\n  hyper_bounds",
-         {"gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0, "rollout": 6,
+         {"gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0,
+          "rollout": 3,  # one job per method (all test angles in one batch)
           "table2": 1, "metrics": 1, "baselines_table": 1, "paper_tables": 1,
           "uq_samples": 12,  # one job per GP of each uq.methods entry: 2 methods x 6 GPs
           "paper_hyp_lml": 0},  # rollouts.study_methods (cr_gpr_paper_hyp) are not in `all`
@@ -157,13 +158,13 @@ UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
         # a setting of the GP prefilter: the gp branch only, not the finite-difference ablation
         ("hyper_points: 41", "hyper_points: 30",
          {"prefilter": 1, "gradient_model": N_GP_MODELS, "gradient_model_paper_hyp": 0,
-          "blackbox_train": 1, "blackbox_rollout": 2, "rollout": 4, "metrics": 1},
+          "blackbox_train": 1, "blackbox_rollout": 2, "rollout": 2, "metrics": 1},
          UPSTREAM),
         # the simulated time: every ground truth and everything downstream, not the discovery cases
         ("t_end_s: 0.2", "t_end_s: 0.25",
          {"ground_truth": 4, "pinn_train": 3, "pinn_rollout": 6, "prefilter": 2,
           "gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0,
-          "blackbox_train": 1, "rollout": 6, "metrics": 1},
+          "blackbox_train": 1, "rollout": 3, "metrics": 1},
          DISCOVERY),
     ],
     ids=["gradient_models.n_hyper", "prefilter.hyper_points", "simulation.t_end_s"],
