@@ -57,7 +57,8 @@ def dtc_mean(stem: Path) -> KernelMean:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--results", default="results")
-    ap.add_argument("--t-end", type=float, default=None, help="rollout length [s] (default: simulation.t_end_s)")
+    ap.add_argument("--t-end", type=float, default=None,
+                    help="rollout length [s] (default: simulation.t_end_s)")
     ap.add_argument("method")
     ap.add_argument("angle", type=float)
     ap.add_argument("variants", nargs="+")

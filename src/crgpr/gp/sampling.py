@@ -702,7 +702,8 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
         raise ValueError(f"{spec.name}: {n_blocks} held-out blocks for n = {n} rows")
     edges = np.linspace(0, n, n_blocks + 1).astype(int)
     if statistic not in ("rms", "median", "split"):
-        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; expected 'rms', 'median' or 'split'")
+        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; "
+                         "expected 'rms', 'median' or 'split'")
     z_all, r_all, v_all = [], [], []
     for b in range(n_blocks):
         te = np.arange(edges[b], edges[b + 1])
