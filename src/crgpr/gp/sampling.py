@@ -666,15 +666,22 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
     correlated along the trajectory: an iid noise term would average them away). ``statistic``
     'rms': c^2 = mean(z_i^2), which maximises the held-out Gaussian log-likelihood of
     N(m_-b, c^2 v); 'median': c = median |z_i| / 0.6745 (the robust scale: the held-out z are
-    heavy-tailed, a few extrapolated blocks dominate their mean square). Scaling sigma_f and
-    sigma_n by c (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean.
+    heavy-tailed, a few extrapolated blocks dominate their mean square). 'split': the residuals
+    are modelled as r_i ~ N(0, c^2 v_i + s^2), the function's error (the latent posterior, scaled)
+    plus the targets' own error s (the prefilter's smoothing error: it is in every target, but
+    not in the function the rollout integrates); (c, s) maximise the held-out Gaussian
+    likelihood (``split_noise_scale``) and c is returned. Scaling sigma_f and sigma_n by c
+    (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean.
     Returns (c, diagnostics with the held-out z statistics).
     """
     n = spec.Xs.shape[0]
     if not 2 <= n_blocks <= n // 2:
         raise ValueError(f"{spec.name}: {n_blocks} held-out blocks for n = {n} rows")
     edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    z_all = []
+    if statistic not in ("rms", "median", "split"):
+        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; "
+                         "expected 'rms', 'median' or 'split'")
+    z_all, r_all, v_all = [], [], []
     for b in range(n_blocks):
         te = np.arange(edges[b], edges[b + 1])
         tr = np.concatenate([np.arange(0, edges[b]), np.arange(edges[b + 1], n)])
@@ -684,16 +691,75 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
         m, v = post.mean_var(x_te)
         r = spec.to_output(spec.y[te]) - m
         z_all.append(r / np.sqrt(np.maximum(v, 1e-300)))
+        r_all.append(r)
+        v_all.append(np.maximum(v, 0.0))
     z = np.concatenate(z_all)
     c_rms = float(np.sqrt(np.mean(z**2)))
     c_med = float(np.median(np.abs(z)) / 0.6744897501960817)
-    if statistic not in ("rms", "median"):
-        raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; expected 'rms' or 'median'")
-    c = c_rms if statistic == "rms" else c_med
+    c_split, s_split = split_noise_scale(np.concatenate(r_all), np.concatenate(v_all))
+    c = {"rms": c_rms, "median": c_med, "split": c_split}[statistic]
     info = {"posterior_scale": c, "heldout_statistic": statistic, "heldout_scale_rms": c_rms,
-            "heldout_scale_median": c_med, "heldout_blocks": int(n_blocks),
+            "heldout_scale_median": c_med, "heldout_scale_split": c_split,
+            "heldout_target_error_split": s_split,
+            "heldout_rms_residual": float(np.sqrt(np.mean(np.concatenate(r_all) ** 2))),
+            "heldout_latent_sd_median": float(np.median(np.sqrt(np.concatenate(v_all)))),
+            "heldout_blocks": int(n_blocks),
             "heldout_median_abs_z": float(np.median(np.abs(z))),
             "heldout_coverage95_unscaled": float(np.mean(np.abs(z) < 1.959964)),
             "heldout_coverage95_scaled": float(np.mean(np.abs(z) < 1.959964 * c)),
             "heldout_block_rms_z": [float(np.sqrt(np.mean(zb**2))) for zb in z_all]}
     return c, info
+
+
+def split_noise_scale(r: np.ndarray, v: np.ndarray, c_min: float = 1e-3, n_grid: int = 301
+                      ) -> tuple[float, float]:
+    """Maximum-likelihood (c, s) of held-out residuals r_i ~ N(0, c^2 v_i + s^2) (``v_i``: the
+    latent posterior variance at the held-out input; s: a target error no function of the input
+    explains). For each c on a log grid over [c_min, 1e3] x the rms z, s^2 solves its score
+    equation (bisection; the profile likelihood in s^2 is unimodal); the best c is refined by a
+    golden-section search between its grid neighbours. c is floored at ``c_min`` x the rms z (a
+    zero function error is not representable as a posterior scale). Returns (c, s)."""
+    r = np.asarray(r, dtype=float).ravel()
+    v = np.asarray(v, dtype=float).ravel()
+    if r.size != v.size or r.size < 2:
+        raise ValueError(f"split_noise_scale: {r.size} residuals and {v.size} variances")
+    r2 = r**2
+    c_ref = float(np.sqrt(np.mean(r2 / np.maximum(v, 1e-300))))
+    if not np.isfinite(c_ref) or c_ref <= 0:
+        return 1.0, 0.0
+
+    def s2_hat(c2: float) -> float:
+        # d/ds2 of sum log(c2 v + s2) + r2 / (c2 v + s2) = sum (tot - r2) / tot^2, increasing in s2
+        # beyond its root; s2 = 0 if the score at 0 is already >= 0
+        def score(s2: float) -> float:
+            tot = c2 * v + s2
+            return float(np.sum((tot - r2) / np.maximum(tot, 1e-300) ** 2))
+        if score(0.0) >= 0:
+            return 0.0
+        lo, hi = 0.0, float(np.mean(r2)) * 4 + 1e-300
+        while score(hi) < 0:
+            hi *= 4
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if score(mid) < 0 else (lo, mid)
+        return 0.5 * (lo + hi)
+
+    def nll(logc: float) -> tuple[float, float]:
+        c2 = np.exp(2 * logc)
+        s2 = s2_hat(c2)
+        tot = np.maximum(c2 * v + s2, 1e-300)
+        return float(np.mean(np.log(tot) + r2 / tot)), s2
+
+    grid = np.log(c_ref) + np.linspace(np.log(c_min), np.log(1e3), n_grid)
+    vals = [nll(g)[0] for g in grid]
+    k = int(np.argmin(vals))
+    a, b = grid[max(k - 1, 0)], grid[min(k + 1, n_grid - 1)]
+    gr = (np.sqrt(5) - 1) / 2
+    for _ in range(60):
+        x1, x2 = b - gr * (b - a), a + gr * (b - a)
+        if nll(x1)[0] < nll(x2)[0]:
+            b = x2
+        else:
+            a = x1
+    logc = 0.5 * (a + b)
+    return float(np.exp(logc)), float(np.sqrt(nll(logc)[1]))

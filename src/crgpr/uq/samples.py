@@ -178,7 +178,7 @@ _subset = subset_spec
 
 def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None) -> tuple[float, dict[str, Any]]:
     """The factor c of the sampled posterior's sd (``uq.posterior_scale``): 1 for 'none'; for
-    'heldout_median' / 'heldout_rms' c from ``crgpr.gp.sampling.heldout_block_scale`` with
+    'heldout_split' / 'heldout_median' / 'heldout_rms' c from ``crgpr.gp.sampling.heldout_block_scale`` with
     ``uq.heldout_blocks`` contiguous (time) blocks, on the inducing inputs ``Z`` when the sampler
     is sparse."""
     if settings.posterior_scale == "none":
@@ -187,8 +187,10 @@ def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None) -> tup
     stat = settings.posterior_scale.removeprefix("heldout_")
     c, info = heldout_block_scale(spec, settings.heldout_blocks,
                                   Z if settings.sampler == "sparse_pathwise" else None, stat)
-    info["posterior_scale_source"] = (f"held-out contiguous blocks of the training rows, {stat} of the "
-                                      "held-out z (latent predictive)")
+    info["posterior_scale_source"] = (
+        f"held-out contiguous blocks of the training rows, {stat} of the held-out z (latent predictive)"
+        if stat != "split" else "held-out contiguous blocks of the training rows, maximum likelihood of "
+        "r ~ N(0, c^2 v_latent + s^2), s the targets' own error (not sampled)")
     info["posterior_scale_seconds"] = time.perf_counter() - t0
     return c, info
 
