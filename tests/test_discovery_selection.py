@@ -19,6 +19,7 @@ from crgpr.discovery.selection import (
     DiscoverySettings,
     Fit,
     TrajectoryFit,
+    alternatives,
     eliminate,
     entry_threshold,
     local_stiffness_error,
@@ -204,3 +205,16 @@ def test_entry_threshold_when_the_initial_state_hides_the_gap(st):
     assert hidden and size == pytest.approx(math.hypot(0.012, st.min_gap_rad))
     hidden, size = entry_threshold(0.20, 0.012, 0.25, st)
     assert not hidden and size == pytest.approx(st.min_effect_fraction * 0.25)
+
+
+def test_alternatives_are_swaps_the_data_do_not_tell_apart(st):
+    """A replacement within bic_min_improvement of the named model that passes the entry tests
+    is reported; a clearly worse one, a failed sign test or one tried in another model is not."""
+    rec = {"out": "air_drag", "in": "viscous_drag", "model": ["tip_mass", "air_drag"], "rmse": 0.0134,
+           "trajectory_delta_bic": -9.6, "effect_size_rad": 0.15, "signs_agree": True, "swapped": False}
+    worse = {**rec, "in": "internal_damping", "trajectory_delta_bic": -55.0}
+    sign = {**rec, "signs_agree": False}
+    other = {**rec, "model": ["air_drag"]}
+    out = alternatives([rec, worse, sign, other], ["tip_mass", "air_drag"], 0.01, st)
+    assert [(a["named"], a["alternative"]) for a in out] == [("air_drag", "viscous_drag")]
+    assert alternatives([rec], [], 0.01, st) == []  # nothing named: no alternatives

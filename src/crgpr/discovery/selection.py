@@ -757,6 +757,19 @@ def swap(fitter: TrajectoryFitter, cur: TrajectoryFit, reg0: Regression, exclude
         cur = best[0]
 
 
+def alternatives(swaps: list[dict[str, Any]], names: list[str], size_min: float, st: DiscoverySettings
+                 ) -> list[dict[str, Any]]:
+    """Replacements (``swap`` records) that the data do not tell apart from the named model
+    ``names``: tried in that model, passing the entry tests (own size >= ``size_min``, signs
+    agree) with |delta BIC| < ``bic_min_improvement``. Reported beside the named effects, not
+    instead of them (three_effects, full config: viscous_drag for air_drag at RMSE 0.0134 vs
+    0.0128 rad, delta BIC -9.6, both below the floor 0.0226)."""
+    return [{"named": w["out"], "alternative": w["in"], "trajectory_delta_bic": w["trajectory_delta_bic"],
+             "rmse": w["rmse"]} for w in swaps
+            if names and w["model"] == list(names) and not w["swapped"] and w["signs_agree"]
+            and abs(w["trajectory_delta_bic"]) < st.bic_min_improvement and w["effect_size_rad"] >= size_min]
+
+
 # ------------------------------------------------------------------------------------------------
 # the whole workflow
 # ------------------------------------------------------------------------------------------------
@@ -908,9 +921,9 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         if not added or len(cur.names) >= st.max_effects:
             break
     swaps: list[dict[str, Any]] = []
+    size_min_final = entry_threshold(gap_before, floor, gap_before, st)[1]
     if accepted:
-        size_min = entry_threshold(gap_before, floor, gap_before, st)[1]
-        cur, swaps = swap(fitter, cur, reg0, dropped, size_min, st)
+        cur, swaps = swap(fitter, cur, reg0, dropped, size_min_final, st)
         if cur is not accepted[-1]:
             accepted.append(cur)
     result: dict[str, Any] = {
@@ -977,6 +990,8 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         "explained_excess_fraction": (1.0 - math.sqrt(max(gap_after**2 - floor**2, 0.0)) / excess
                                       if excess > 0 else 0.0),
         "where": where, "best_attempt": best_attempt,
+        "indistinguishable_alternatives": alternatives(swaps, [e["name"] for e in effects], size_min_final,
+                                                       st),
         "significant_but_below_tolerance": [k for k, g in steps[0]["residual_bic_gain"].items()
                                             if g >= st.bic_min_improvement] if verdict == "none" else [],
         "timing_s": {"gp_smoothing": t_smooth, "total": time.perf_counter() - t_start},
