@@ -77,3 +77,34 @@ def test_cutoff_radius_is_the_tolerance():
     v = (1 + np.sqrt(5) * r + 5 / 3 * r * r) * np.exp(-np.sqrt(5) * r)
     assert np.isclose(v, 1e-12, rtol=1e-6)
     assert cutoff_radius("se", 0.0) == np.inf
+
+
+@pytest.mark.parametrize(("kernel", "basis", "ell"), [("se", "linear", 20.0), ("matern52", "constant", 200.0),
+                                                      ("se", "pure_quadratic", 5.0)])
+def test_low_rank_exact_weights_equal_the_dense_posterior_mean(kernel, basis, ell):
+    """Long lengthscales (a kernel matrix of small numerical rank, as obj_m's): exact_weights
+    takes the pivoted-Cholesky-preconditioned CG path and gives the same exact mean (1e-10)."""
+    import crgpr.gp.evaluators as ev
+
+    rng = np.random.default_rng(5)
+    n, d = 600, 3
+    X = rng.uniform(-1, 1, (n, d))
+    y = 2.0 * X[:, 0] - X[:, 1] + 0.05 * np.sin(2 * X[:, 2]) + 0.01 * rng.standard_normal(n)
+    gp = fit_gp(X, y, kernel=kernel, basis=basis, ard=True, n_restarts=0, seed=1, factorise=False,
+                fixed={"sigma_f": 1.0, "lengthscales": np.full(d, ell), "sigma_n": 0.02})
+    Ul = np.ascontiguousarray(gp.Xs / gp.ell)
+    B = np.column_stack([gp.y, ev.basis_matrix_std(gp.basis, gp.Xs)])
+    assert ev._lowrank_solve(Ul, ev.KERNEL_ID[kernel], gp.sigma_f**2, gp.sigma_n**2, B) is not None
+    Xs = rng.uniform(-1.5, 1.5, (200, d))
+    ref = _dense_mean(gp, Xs)
+    got = KernelMean.exact(gp, tol=0.0, weights=exact_weights(gp))(Xs)
+    assert np.max(np.abs(got - ref)) <= 1e-10 * np.max(np.abs(ref))
+
+
+def test_full_rank_kernels_fall_back_to_the_dense_factorisation():
+    """Short lengthscales: the low-rank path declines (None) and the dense Cholesky is used."""
+    import crgpr.gp.evaluators as ev
+
+    rng = np.random.default_rng(6)
+    Ul = rng.uniform(-20, 20, (800, 3))
+    assert ev._lowrank_solve(Ul, 0, 1.0, 1e-4, np.ones((800, 1))) is None

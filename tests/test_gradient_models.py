@@ -143,3 +143,26 @@ def test_rollout_mean_auto_integrates_dtc_only_where_it_equals_the_exact_mean(sm
     exact = KernelMean.exact(GP.load(tmp_path / "q_x"), tol=0.0)
     err = np.max(np.abs(ev(X) - exact(X))) / meta["target_std"]
     assert err <= (1e-9 if expect_exact else 10 * threshold)
+
+
+def test_smooth_model_rolls_out_on_a_low_rank_dtc_mean(smoke):
+    """A nearly linear law (obj_m's situation: lengthscales far beyond the data): rollout_mean
+    auto picks DTC and ``dtc_rank_tol`` re-expresses it on a few pivots of its inducing inputs,
+    still within dtc_max_error of the dense exact mean; the saved model loads as that mean."""
+    from crgpr.learning.gradient_models import fit_model
+
+    cfg = json.loads(json.dumps(smoke[0]))
+    gm = {**cfg["gradient_models"], "rollout_mean": "auto", "dtc_max_error": 1e-3, "dtc_rank_tol": 1e-14,
+          "inducing": 120, "check_points": 200}
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1.0, 1.0, (1500, 3))
+    y = 0.8 * X[:, 0] - 0.3 * X[:, 1] + 0.01 * rng.standard_normal(1500)
+    spec = {"kernel": "se", "ard": True, "basis": "linear", "sigma_n_min": 0.0, "n_train": 1500}
+    gp, arrays, report = fit_model("obj_m", X, y, spec, gm, 0, X[:50] + 0.05)
+    assert "rollout_pivots" in arrays and len(arrays["rollout_pivots"]) <= 60
+    assert report["approx_error_vs_exact"]["max_abs"] <= 1e-3 * report["target_std"]
+    exact = KernelMean.exact(gp, tol=0.0)
+    Xs = rng.uniform(-1.0, 1.0, (100, 3))
+    red = KernelMean.dtc(gp, arrays["dtc_Z"][arrays["rollout_pivots"]], arrays["rollout_w"][:, 0],
+                         arrays["dtc_beta"][:, 0])
+    assert np.max(np.abs(red(Xs) - exact(Xs))) <= 1e-2 * report["target_std"]

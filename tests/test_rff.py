@@ -18,12 +18,12 @@ from crgpr.gp.sampling import (
     inducing_indices,
     pathwise_covariance,
     pathwise_samples,
-    pivoted_cholesky,
     posterior_from_gp,
     reduce_update_rank,
     sparse_posterior,
     weight_space_samples,
 )
+from crgpr.gp.sparse import pivoted_cholesky
 from crgpr.io import load_npz, write_npz
 
 

@@ -144,7 +144,7 @@ def model_dir(tmp_path_factory) -> Path:
     truth = true_targets(traj.q, traj.p, PARAMS)
     # rollout_mean dtc: the mean model here is the DTC mean the samples are centred on
     gm = {"n_restarts": 0, "n_hyper": 80, "inducing": 30, "check_points": 50, "rollout_mean": "dtc",
-          "exact_tol": 1e-12, "check_every": 1,
+          "dtc_max_error": 1e-6, "dtc_rank_tol": 1e-14, "exact_tol": 1e-12, "check_every": 1,
           "hyper_bounds": {"ell_min_over_spread": 0.01, "ell_max_over_spread": 100.0,
                            "sigma_f_min_std": 0.01, "sigma_f_max_std": 10.0}}
     rng = np.random.default_rng(5)

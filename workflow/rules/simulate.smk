@@ -15,6 +15,7 @@ rule ground_truth:
         "logs/ground_truth/{angle}.log",
     benchmark:
         "benchmarks/ground_truth/{angle}.tsv"
+    priority: 10  # cheap and needed early by long rules (pinn_train of 8 angles, prefilter)
     threads: 1
     resources:
         mem_mb=500,

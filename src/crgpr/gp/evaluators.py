@@ -161,28 +161,172 @@ def cutoff_radius(kernel: str, tol: float) -> float:
     return hi
 
 
+@njit(cache=True)
+def _kernel_column(Ul, i, kernel_id, sf2, out):
+    """out[j] = k(Ul_i, Ul_j) (no noise) for scaled inputs."""
+    n, d = Ul.shape
+    for j in range(n):
+        r2 = 0.0
+        for k in range(d):
+            dd = Ul[i, k] - Ul[j, k]
+            r2 += dd * dd
+        if kernel_id == 0:
+            out[j] = sf2 * math.exp(-0.5 * r2)
+        else:
+            r = math.sqrt(r2)
+            out[j] = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+
+
+@njit(cache=True)
+def _kernel_matvec(Ul, kernel_id, sf2, noise2, X, out):
+    """out = (K + noise2 I) X for a block X (n, k) without forming K (symmetric pass)."""
+    n, d = Ul.shape
+    m = X.shape[1]
+    for i in range(n):
+        for c in range(m):
+            out[i, c] = (sf2 + noise2) * X[i, c]
+    for i in range(n):
+        for j in range(i):
+            r2 = 0.0
+            for k in range(d):
+                dd = Ul[i, k] - Ul[j, k]
+                r2 += dd * dd
+            if kernel_id == 0:
+                v = sf2 * math.exp(-0.5 * r2)
+            else:
+                r = math.sqrt(r2)
+                v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+            for c in range(m):
+                out[i, c] += v * X[j, c]
+                out[j, c] += v * X[i, c]
+
+
+#: low-rank path of ``exact_weights``: largest pivoted-Cholesky rank tried, the residual trace
+#: (x sigma_n^2) at which the preconditioner is complete, CG relative residual and iterations
+_LOWRANK_MAX_RANK = 600
+_LOWRANK_TRACE = 1e-3
+_CG_RTOL = 1e-13
+_CG_MAXITER = 60
+
+
+def _pivoted_rank(Ul: np.ndarray, kernel_id: int, sf2: float, trace_tol: float, rmax: int) -> int | None:
+    """Pivots a pivoted Cholesky of k(Ul, Ul) needs for a residual trace below trace_tol, or None
+    if more than rmax (the rank test of ``_lowrank_solve``)."""
+    n = Ul.shape[0]
+    dg = np.full(n, sf2)
+    L = np.zeros((n, min(n, rmax)))
+    col = np.empty(n)
+    r = 0
+    while dg.sum() > trace_tol:
+        if r == L.shape[1]:
+            return None
+        i = int(np.argmax(dg))
+        _kernel_column(Ul, i, kernel_id, sf2, col)
+        v = (col - L[:, :r] @ L[i, :r]) / math.sqrt(dg[i])
+        L[:, r] = v
+        dg = np.maximum(dg - v * v, 0.0)
+        dg[i] = 0.0
+        r += 1
+    return r
+
+
+def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B: np.ndarray
+                   ) -> np.ndarray | None:
+    """(K + noise2 I)^-1 B for a kernel matrix of small numerical rank, or None.
+
+    Pivoted Cholesky K ~ L L^T (kernel columns on demand) until the residual trace is below
+    ``_LOWRANK_TRACE`` noise2 (then P = L L^T + noise2 I differs from K + noise2 I by a PSD E with
+    ||E|| <= 1e-3 noise2: cond(P^-1 A) <= 1.001); preconditioned CG on every column of B (one
+    matrix-free kernel pass per iteration) to relative residual ``_CG_RTOL``. None when the rank
+    exceeds ``_LOWRANK_MAX_RANK`` or CG does not converge (the caller factorises densely)."""
+    import scipy.linalg as sla
+
+    n = Ul.shape[0]
+    if noise2 <= 0.0:
+        return None
+    # a random subset of n_sub rows needing the rank cap already (at the same residual trace
+    # per row) means the full matrix needs more: decline before the O(n r^2) work
+    n_sub = min(n, 4 * _LOWRANK_MAX_RANK)
+    if n_sub < n:
+        sub = np.random.default_rng(0).choice(n, size=n_sub, replace=False)
+        if _pivoted_rank(np.ascontiguousarray(Ul[sub]), kernel_id, sf2, _LOWRANK_TRACE * noise2 * n_sub / n,
+                         _LOWRANK_MAX_RANK // 2) is None:
+            return None
+    dg = np.full(n, sf2)
+    rmax = min(n, _LOWRANK_MAX_RANK)
+    L = np.zeros((n, rmax))
+    col = np.empty(n)
+    r = 0
+    while dg.sum() > _LOWRANK_TRACE * noise2:
+        if r == rmax:
+            return None
+        i = int(np.argmax(dg))
+        _kernel_column(Ul, i, kernel_id, sf2, col)
+        v = (col - L[:, :r] @ L[i, :r]) / math.sqrt(dg[i])
+        L[:, r] = v
+        dg = np.maximum(dg - v * v, 0.0)
+        dg[i] = 0.0
+        r += 1
+    L = L[:, :r]
+    C = sla.cho_factor(noise2 * np.eye(r) + L.T @ L, lower=True)
+
+    def precond(R: np.ndarray) -> np.ndarray:
+        return (R - L @ sla.cho_solve(C, L.T @ R)) / noise2
+
+    B = np.asarray(B, dtype=float)
+    X = precond(B)
+    AX = np.empty_like(B)
+    _kernel_matvec(Ul, kernel_id, sf2, noise2, X, AX)
+    R = B - AX
+    Zp = precond(R)
+    P = Zp.copy()
+    rz = (R * Zp).sum(0)
+    bnorm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+    AP = np.empty_like(B)
+    for _ in range(_CG_MAXITER):
+        if np.all(np.linalg.norm(R, axis=0) <= _CG_RTOL * bnorm):
+            return X
+        _kernel_matvec(Ul, kernel_id, sf2, noise2, P, AP)
+        alpha = rz / np.maximum((P * AP).sum(0), 1e-300)
+        X += alpha * P
+        R -= alpha * AP
+        Zp = precond(R)
+        rz_new = (R * Zp).sum(0)
+        P = Zp + (rz_new / np.maximum(rz, 1e-300)) * P
+        rz = rz_new
+    return X if np.all(np.linalg.norm(R, axis=0) <= _CG_RTOL * bnorm) else None
+
+
 def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
     """(alpha (n,), beta (m,)) of a single-output GP's exact posterior mean over ALL its n
     training points (R&W eqs. (2.41)-(2.42), vague prior on beta):
 
         beta = (H^T K_y^-1 H)^-1 H^T K_y^-1 v,   alpha = K_y^-1 (v - H beta).
 
-    Same algebra as ``GP._factorise`` with one n x n array (filled and Cholesky-factorised in
-    place: 8 n^2 bytes, 2.9 GB at n = 18 975), O(n^3 / 3) once.
+    K_y^-1 applied by ``_lowrank_solve`` where the kernel matrix has a small numerical rank
+    (long lengthscales: pivoted-Cholesky-preconditioned CG to relative residual 1e-13,
+    O(n^2) per iteration, no n x n array), else as in ``GP._factorise`` by one in-place Cholesky
+    factorisation of one n x n array (8 n^2 bytes, 2.9 GB at n = 18 975), O(n^3 / 3).
     """
     import scipy.linalg as sla
 
     if gp.multi:
         raise GPError("exact_weights needs a single-output GP")
     U = gp.Xs
-    K = np.empty((gp.n, gp.n), order="F")
-    _fill_kernel(np.ascontiguousarray(U / gp.ell), KERNEL_ID[gp.kernel], gp.sigma_f**2, gp.sigma_n**2, K)
-    L = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+    Ul = np.ascontiguousarray(U / gp.ell)
+    kid, sf2, sn2 = KERNEL_ID[gp.kernel], gp.sigma_f**2, gp.sigma_n**2
     V = np.ravel(gp._V()[:, 0])
     H = basis_matrix_std(gp.basis, U)
-    KiV = sla.cho_solve((L, True), V, check_finite=False)
+    sol = _lowrank_solve(Ul, kid, sf2, sn2, np.column_stack([V, H]))
+    if sol is not None:
+        KiV, KiH = sol[:, 0], sol[:, 1:]
+    else:
+        K = np.empty((gp.n, gp.n), order="F")
+        _fill_kernel(Ul, kid, sf2, sn2, K)
+        L = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+        KiV = sla.cho_solve((L, True), V, check_finite=False)
+        KiH = sla.cho_solve((L, True), H, check_finite=False) if H.shape[1] else H
     if H.shape[1]:
-        KiH = sla.cho_solve((L, True), H, check_finite=False)
         beta = np.linalg.solve(H.T @ KiH, H.T @ KiV)
         return KiV - KiH @ beta, beta
     return KiV, np.zeros(0)
@@ -407,7 +551,8 @@ def load_model(stem: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]
 def load_evaluator(stem: str | Path) -> KernelMean | Table1D:
     """The rollout evaluator of a saved model: ``table_x/table_y`` -> ``Table1D``;
     ``mean_alpha/mean_beta`` -> the exact posterior mean over all n training points
-    (``KernelMean``, truncation ``exact_tol`` of the JSON); ``dtc_Z/dtc_w/dtc_beta`` -> DTC
+    (``KernelMean``, truncation ``exact_tol`` of the JSON); ``rollout_pivots/rollout_w`` (the DTC mean
+    on a low-rank subset of its inducing inputs), else ``dtc_Z/dtc_w/dtc_beta`` -> DTC
     ``KernelMean``; else the exact mean (factorises once). The evaluator carries the model's
     JSON metadata as ``.meta``."""
     arr, meta = load_model(stem)
@@ -420,6 +565,9 @@ def load_evaluator(stem: str | Path) -> KernelMean | Table1D:
         U = (arr["X"].reshape(arr["X"].shape[0], -1) - arr["x_mean"]) / arr["x_scale"]
         ev = KernelMean(*args, U, arr["mean_alpha"], arr["mean_beta"], kind="exact",
                         tol=float(meta["exact_tol"]))
+    elif "rollout_pivots" in arr:  # the DTC mean on a low-rank subset of its inducing inputs
+        Zp = arr["dtc_Z"][arr["rollout_pivots"]]
+        ev = KernelMean(*args, Zp, arr["rollout_w"][:, 0], arr["dtc_beta"][:, 0], kind="dtc")
     elif "dtc_Z" in arr:
         ev = KernelMean(*args, arr["dtc_Z"], arr["dtc_w"][:, 0], arr["dtc_beta"][:, 0], kind="dtc")
     else:

@@ -67,7 +67,7 @@ from numba import njit
 
 from crgpr.gp._gpr import GP, basis_matrix_std, kernel_matrix
 from crgpr.gp.evaluators import _SE_POLY, KernelMean, kernel_sum_fast, truncated_sum_batch
-from crgpr.gp.sparse import select_inducing
+from crgpr.gp.sparse import nystrom_reduce, select_inducing
 
 log = logging.getLogger(__name__)
 
@@ -502,36 +502,13 @@ class CompressedSamples:
         return self.y_mean + self.y_scale * out
 
 
-def pivoted_cholesky(K: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Greedy pivoted Cholesky K ~ L L^T (Harbrecht et al. 2012): pivots P, in order, while the
-    largest residual diagonal exceeds tol max(diag K); L (M, r), L[P] lower triangular."""
-    M = K.shape[0]
-    d = np.diag(K).astype(float).copy()
-    top = float(d.max()) if M else 0.0
-    L = np.zeros((M, M))
-    piv: list[int] = []
-    for k in range(M):
-        i = int(np.argmax(d))
-        if not d[i] > tol * top:
-            break
-        piv.append(i)
-        col = (K[:, i] - L[:, :k] @ L[i, :k]) / math.sqrt(d[i])
-        L[:, k] = col
-        d -= col * col
-        d[piv] = 0.0
-    return np.array(piv, dtype=int), L[:, :len(piv)]
-
-
 def reduce_update_rank(comp: CompressedSamples, tol: float) -> CompressedSamples:
-    """The same samples with the update term k(u, Z) a_s on the pivoted-Cholesky subset Z_P of
-    Z (residual diagonal of K_ZZ below tol sigma_f^2): a'_s = K_PP^-1 K_PZ a_s (Nystrom), i.e.
-    k(u, Z) a_s -> k(u, Z_P) K_PP^-1 K_PZ a_s, exact at u in Z up to the dropped residual. For
-    a smooth kernel K_ZZ has a small numerical rank and the rollout's kernel part shrinks from
-    M to r terms; the caller measures the change (samples.py)."""
-    K = se_kernel(comp.Z, comp.Z, 1.0, comp.lengthscales)
-    piv, L = pivoted_cholesky(K, tol)
-    a = sla.solve_triangular(L[piv].T, L.T @ comp.a.T, lower=False, check_finite=False).T
-    return dataclasses.replace(comp, Z=comp.Z[piv].copy(), a=np.ascontiguousarray(a))
+    """The same samples with the update term k(u, Z) a_s on the pivoted-Cholesky subset of Z
+    (``crgpr.gp.sparse.nystrom_reduce``, residual diagonal of K_ZZ below tol sigma_f^2): a smooth
+    kernel's K_ZZ has a small numerical rank, so the rollout's kernel part shrinks from M to r
+    terms; the caller measures the change (``crgpr.uq.samples``)."""
+    piv, a = nystrom_reduce(comp.Z, comp.a.T, "se", comp.lengthscales, tol)
+    return dataclasses.replace(comp, Z=comp.Z[piv].copy(), a=np.ascontiguousarray(a.T))
 
 
 def compress(samples: PathwiseSamples, inducing: np.ndarray, ridge: float = 1e-8) -> CompressedSamples:

@@ -52,3 +52,37 @@ def dtc_fit(gp: GP, X: np.ndarray, V: np.ndarray, M: int, seed: int) -> dict[str
     A[np.diag_indices_from(A)] += 1e-10 * np.trace(A) / A.shape[0]
     sol = sla.solve(A, Phi.T @ V, assume_a="pos")
     return {"dtc_Z": Z, "dtc_beta": sol[:m], "dtc_w": sol[m:]}
+
+
+def pivoted_cholesky(K: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Greedy pivoted Cholesky K ~ L L^T (Harbrecht et al. 2012): pivots P, in order, while the
+    largest residual diagonal exceeds tol max(diag K); L (M, r), L[P] lower triangular."""
+    M = K.shape[0]
+    d = np.diag(K).astype(float).copy()
+    top = float(d.max()) if M else 0.0
+    L = np.zeros((M, M))
+    piv: list[int] = []
+    for k in range(M):
+        i = int(np.argmax(d))
+        if not d[i] > tol * top:
+            break
+        piv.append(i)
+        col = (K[:, i] - L[:, :k] @ L[i, :k]) / np.sqrt(d[i])
+        L[:, k] = col
+        d -= col * col
+        d[piv] = 0.0
+    return np.array(piv, dtype=int), L[:, :len(piv)]
+
+
+def nystrom_reduce(Z: np.ndarray, A: np.ndarray, kernel: str, ell: np.ndarray, tol: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """A kernel expansion k(u, Z) A (Z (M, d) standardised, A (M, ...)) on the pivoted-Cholesky
+    subset Z_P of Z whose residual diagonal is below tol x k(0): A' = K_PP^-1 K_PZ A (Nystrom),
+    i.e. k(u, Z) -> k(u, Z_P) K_PP^-1 K_PZ, exact at u in Z up to the dropped residual. For a
+    smooth kernel K_ZZ has a small numerical rank and the expansion shrinks from M to r terms;
+    callers measure the change. Returns (P, A'): the pivots (indices into Z) and coefficients."""
+    K = kernel_matrix(kernel, Z, Z, 1.0, np.asarray(ell, dtype=float))
+    piv, L = pivoted_cholesky(K, tol)
+    A2 = np.asarray(A, dtype=float).reshape(Z.shape[0], -1)
+    red = sla.solve_triangular(L[piv].T, L.T @ A2, lower=False, check_finite=False)
+    return piv, red.reshape((len(piv), *np.shape(A)[1:]))

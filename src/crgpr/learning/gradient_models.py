@@ -50,6 +50,7 @@ import numpy as np
 
 from crgpr.config import ConfigError, rod_params
 from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, exact_weights, fit_gp
+from crgpr.gp.sparse import nystrom_reduce
 from crgpr.io import read_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
@@ -216,6 +217,22 @@ def _choice_note(gm: dict[str, Any], use_exact: bool) -> str:
             f"sets {side} dtc_max_error = {float(gm['dtc_max_error']):g} target std)")
 
 
+def _reduced_dtc(gp: GP, arrays: dict[str, np.ndarray], gm: dict[str, Any], sets: dict[str, np.ndarray],
+                 dense: Any, ystd: float) -> tuple[KernelMean, np.ndarray, np.ndarray] | None:
+    """The DTC mean on the pivoted-Cholesky subset of its inducing inputs (``nystrom_reduce``,
+    ``dtc_rank_tol``): used for the rollout if it has at most half the terms and stays within
+    ``dtc_max_error`` target std of the exact mean at both check sets; else None."""
+    tol = float(gm["dtc_rank_tol"])
+    if tol <= 0:
+        return None
+    piv, w = nystrom_reduce(arrays["dtc_Z"], arrays["dtc_w"], gp.kernel, gp.ell, tol)
+    if len(piv) > arrays["dtc_Z"].shape[0] // 2:
+        return None
+    ev = KernelMean.dtc(gp, arrays["dtc_Z"][piv], w[:, 0], arrays["dtc_beta"][:, 0])
+    worst = _dtc_worst_over_std({k: _err(ev(v), dense(v), ystd) for k, v in sets.items()}, ystd)
+    return (ev, piv, w) if worst <= float(gm["dtc_max_error"]) else None
+
+
 def hyper_bounds(X: np.ndarray, hb: dict[str, Any]
                  ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[float, float]]:
     """Lengthscale and sigma_f bounds in standardised units (``gradient_models.hyper_bounds``):
@@ -311,6 +328,12 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
             rollout_ev = dtc
             report["approximation"] = f"DTC mean, M = {len(arrays['dtc_Z'])} farthest-point inducing inputs"
             report["truncation_bound_over_target_std"] = float("nan")
+            red = _reduced_dtc(gp, arrays, gm, sets, dense, ystd)
+            if red is not None:
+                rollout_ev, arrays["rollout_pivots"], arrays["rollout_w"] = red
+                r_tol, r = float(gm["dtc_rank_tol"]), len(arrays["rollout_pivots"])
+                report["approximation"] += (f", on the {r} pivoted-Cholesky pivots of its inducing inputs "
+                                            f"(dtc_rank_tol {r_tol:g})")
         report["rollout_mean_choice"] = _choice_note(gm, use_exact)
         report["fit_rmse_over_target_std"] = float(np.sqrt(np.mean((dense(Xn) - yn) ** 2)) / ystd)
     errs = {k: _err(rollout_ev(v), dense(v), ystd) for k, v in sets.items()}

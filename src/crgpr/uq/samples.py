@@ -166,6 +166,10 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")
     spec.rollout_arrays = {k: arr[k] for k in ("dtc_Z", "dtc_w", "dtc_beta") if k in arr}
+    if "rollout_pivots" in arr:  # the rollout integrates the DTC mean on a subset of dtc_Z
+        w = np.zeros_like(arr["dtc_w"])
+        w[arr["rollout_pivots"]] = arr["rollout_w"]
+        spec.rollout_arrays["dtc_w"] = w
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
 
 
