@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -67,7 +69,7 @@ def test_benchmark_files_map_to_exactly_one_rule():
         "benchmarks/baselines/pinn_rollout/pinn_data_8/60.tsv": "pinn_rollout",
         "benchmarks/discovery/run_tip_mass.tsv": "discovery_run",
         "benchmarks/uq/cr_gpr_objective/samples/obj_m.tsv": "uq_samples",
-        "benchmarks/uq/cr_gpr/rollout/125.tsv": "uq_rollout",
+        "benchmarks/uq/cr_gpr/rollout.tsv": "uq_rollout",
     }
     for path, rule in examples.items():
         owners = [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)]
@@ -193,3 +195,74 @@ def test_code_version_is_compared_unless_ignored(monkeypatch):
     assert differing == [".code_version", ".inputs.x.parquet"]
     monkeypatch.setattr(check, "IGNORE_CODE_VERSION", True)
     assert check.diff_keys(check.drop_timing(a), check.drop_timing(b)) == []
+
+
+def _ci_targets() -> list[str]:
+    lines = (ROOT / "workflow" / "cluster" / "ci_targets.txt").read_text().splitlines()
+    return [t for line in lines if (t := line.split("#", 1)[0].strip())]
+
+
+def _dry_run_jobs(tmp_path: Path, *targets: str) -> dict[str, int]:
+    """Jobs per rule that `snakemake -n TARGETS` plans on the smoke config in an empty directory."""
+    res = subprocess.run(
+        [sys.executable, "-m", "snakemake", "-n", "--quiet", "rules", "-s", str(ROOT / "Snakefile"),
+         "--configfile", str(ROOT / "tests" / "smoke_config.yaml"), "-d", str(tmp_path), *targets],
+        cwd=ROOT, capture_output=True, text=True,
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    jobs = {}
+    for line in res.stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[1].isdigit() and parts[0] not in ("job", "total"):
+            jobs[parts[0]] = int(parts[1])
+    return jobs
+
+
+def test_ci_targets_are_a_pinn_free_sub_dag_of_all_through_every_stage(tmp_path):
+    """The CI Slurm run (.ci/run: CRGPR_SLURM_TARGETS=@workflow/cluster/ci_targets.txt) plans a
+    job of every stage kind it stands for, no PINN (torch) job, and only jobs `all` has too."""
+    ci = _dry_run_jobs(tmp_path / "ci", *_ci_targets())
+    everything = _dry_run_jobs(tmp_path / "all", "all")
+    stages = {"ground_truth", "prefilter", "gradient_model", "rollout", "variant_metrics",
+              "figures_crgpr", "discovery_data", "discovery_run"}
+    assert stages <= set(ci), ci
+    assert not any(rule.startswith("pinn") for rule in ci), ci
+    assert all(ci[r] <= everything.get(r, 0) for r in ci if r != "variant_metrics"), (ci, everything)
+    assert sum(ci.values()) < sum(everything.values()) / 3
+
+
+def test_slurm_script_skips_with_one_line_where_it_cannot_run(tmp_path):
+    """Not root: exit 77 with one SKIPPED line, before it installs or starts anything."""
+    script = ROOT / "workflow" / "cluster" / "test-slurm.sh"
+    cmd = ["bash", str(script)]
+    if os.geteuid() == 0:
+        if shutil.which("setpriv") is None:
+            pytest.skip("root without setpriv: cannot drop to another user")
+        cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+    env = {**os.environ, "CRGPR_SLURM_SCRATCH": str(tmp_path)}
+    res = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 77, res.stdout + res.stderr
+    skipped = [line for line in res.stdout.splitlines() if "SKIPPED" in line]
+    assert skipped == ["test-slurm: SKIPPED: needs root (apt-get, munged, slurmd)"], res.stdout
+    assert list(tmp_path.iterdir()) == []  # no scratch directory made
+
+
+def test_benchmark_file_matching_two_patterns_goes_to_the_more_specific_rule():
+    rules = rule_resources.parse_rules(ROOT / "workflow" / "rules")
+    path = "benchmarks/rollouts/cr_gpr_objective_camera/125.tsv"
+    matching = [r for r in rules.values() if r.benchmark and r.pattern().match(path)]
+    assert {r.name for r in matching} == {"rollout", "camera_rollout"}
+    assert [r.name for r in rule_resources.most_specific(matching)] == ["camera_rollout"]
+
+
+@pytest.mark.parametrize(
+    ("name", "timing"),
+    [("seconds", True), ("seconds_exact_weights", True), ("posterior_scale_seconds", True),
+     ("fit_seconds", True), ("minutes", True), ("wall_s", True), ("timing_s", True),
+     ("dt_s", False), ("t_end_s", False), ("window_s", False), ("seconds2", False), ("sigma_n", False)],
+)
+def test_timing_fields_are_named_by_convention(name, timing):
+    """Wall-clock fields (not compared between the local and the Slurm run) are recognised by
+    name, so a new ``seconds_*`` / ``*_seconds`` key needs no checker change, while a physical
+    time such as ``dt_s`` is compared."""
+    assert check.is_timing(name) is timing

@@ -21,7 +21,7 @@ from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate
 from crgpr.uq.calibration import model_features, true_targets
 from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, expected_coverage, summary_rows
-from crgpr.uq.rollout import rollout_samples
+from crgpr.uq.rollout import rollout_samples, rollout_samples_angles
 from crgpr.uq.samples import TabulatedSamples, load_gp_spec, load_samples, sample_model
 from crgpr.uq.settings import UQSettings
 
@@ -307,3 +307,48 @@ def test_uq_settings_cross_checks() -> None:
         UQSettings.from_section({**u, "paper_n_samples": u["n_samples"] + 1})
     with pytest.raises(ConfigError, match="uq.figure_level"):
         UQSettings.from_section({**u, "figure_level": 99})
+
+
+def test_angles_batched_equal_each_angle_alone_and_resume_exactly(model_dir: Path, tmp_path: Path) -> None:
+    """All angles in one batch of S x A rods give, per angle, the numbers of that angle alone; a
+    member made to run away is dropped and the others resume from the last good record bit for
+    bit (no restart from t = 0)."""
+    names = ("q_x", "q_y", "dH_dtheta", *MOMENTUM_MODELS)
+    for m in names:
+        sample_model(model_dir / m, m, SETTINGS, 13, tmp_path / f"{m}.npz", tmp_path / f"{m}.json")
+    smp = load_samples({m: tmp_path / f"{m}.npz" for m in names})
+    center = json.loads((model_dir / "q_x.json").read_text())["theta_center"]
+    both = rollout_samples_angles(smp, "paper", PARAMS, center, [125.0, 60.0], SHORT)
+    for a in (125.0, 60.0):
+        t, q, p, keep, div = rollout_samples(smp, "paper", PARAMS, center, a, SHORT)
+        tb, qb, pb, keepb, divb = both[a]
+        assert div == divb == [] and np.array_equal(keep, keepb)
+        assert np.array_equal(t, tb) and np.array_equal(q, qb) and np.array_equal(p, pb)
+    smp["dH_dp_theta"].values[3] *= 1e9  # sample 3: a runaway angular velocity
+    after = rollout_samples_angles(smp, "paper", PARAMS, center, [125.0, 60.0], SHORT)
+    for a in (125.0, 60.0):
+        t2, q2, p2, keep2, div2 = after[a]
+        t, q, p, keep, _ = both[a]
+        assert [d["sample"] for d in div2] == [3] and 3 not in keep2
+        assert np.array_equal(t2, t)
+        rows = np.searchsorted(keep, keep2)
+        assert np.array_equal(q2, q[rows]) and np.array_equal(p2, p[rows])
+
+
+def test_a_run_resumed_from_a_record_equals_the_uninterrupted_run(model_dir: Path) -> None:
+    """The resume of ``rollout_samples_angles``: the scheme's state at a record, (q, p), fixes the
+    rest of the run, so integrating in two pieces gives the one-piece numbers bit for bit."""
+    from crgpr.physics.integrator import rod_length, run_hamiltonian
+    from crgpr.physics.rod import free_mask, straight_rod
+
+    rod = LearnedRod.from_dir(model_dir, "paper", PARAMS)
+    q0 = straight_rod(np.radians(125.0), PARAMS)
+    args = (rod.force, rod.velocity, free_mask(PARAMS), PARAMS.zeta, SHORT.dt)
+    kw = {"velocity_slope": rod.velocity_slope, "length": rod_length(q0)}
+    n, every = SHORT.n_steps, SHORT.record_every
+    whole = run_hamiltonian(q0, np.zeros_like(q0), *args, n, every, rod.wds, **kw)
+    r = (n // every) // 2
+    first = run_hamiltonian(q0, np.zeros_like(q0), *args, r * every, every, rod.wds, **kw)
+    rest = run_hamiltonian(first.q[-1], first.v[-1], *args, n - r * every, every, rod.wds, **kw)
+    assert np.array_equal(np.concatenate([first.q[:-1], rest.q]), whole.q)
+    assert np.array_equal(np.concatenate([first.v[:-1], rest.v]), whole.v)

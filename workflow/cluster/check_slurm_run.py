@@ -22,11 +22,11 @@ per failed check and exits 1.
    - Markdown: equal line by line, except that in timing lines (``[min]``, ``| stageN |``,
      ``Run time ...``) only the numbers may differ;
    - PNG and anything else: byte-equal.
-   Timing keys/columns are wall-clock measurements: metadata/JSON keys ``seconds``,
-   ``seconds_hyper``, ``seconds_rollout``, ``fit_seconds``, ``train_seconds``, ``sampling_s``,
-   ``runtime_s`` and the ``timing_s`` dict; table columns ``minutes``, ``train_seconds``,
-   ``runtime_s``, ``wall_s``, ``seconds_batch`` (Parquet and
-   CSV). ``code_version`` (package version + git commit)
+   Timing keys/columns are wall-clock measurements, named so by the project's convention: a
+   key or column ``seconds``, ``seconds_*`` or ``*_seconds`` (``seconds_hyper``,
+   ``seconds_exact_weights``, ``fit_seconds``, ``posterior_scale_seconds``, ...), or one of
+   ``sampling_s``, ``runtime_s``, ``wall_s``, ``minutes`` and the ``timing_s`` dict (metadata,
+   JSON, Parquet and CSV alike). ``code_version`` (package version + git commit)
    is compared like any other key: a local run made at another commit does not count;
    ``--ignore-code-version`` allows it where the commits differ only outside ``src/``.
 """
@@ -43,11 +43,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-TIMING_KEYS = frozenset(
-    {"seconds", "seconds_hyper", "seconds_rollout", "fit_seconds", "train_seconds", "sampling_s",
-     "runtime_s", "timing_s"}
-)
-TIMING_COLUMNS = frozenset({"minutes", "train_seconds", "runtime_s", "wall_s", "seconds_batch"})
+TIMING_NAMES = frozenset({"sampling_s", "runtime_s", "wall_s", "minutes", "timing_s"})
+TIMING_NAME = re.compile(r"^seconds(_\w+)?$|^\w+_seconds$")
+
+
+def is_timing(name: object) -> bool:
+    """Whether a metadata/JSON key or table column holds a wall-clock measurement."""
+    return isinstance(name, str) and (name in TIMING_NAMES or bool(TIMING_NAME.match(name)))
+
+
 # paper_vs_reproduction.csv: the timing rows' measured columns
 TIMING_ROW_SOURCE = "Table (timing)"
 TIMING_ROW_COLUMNS = ("ours", "abs_diff", "rel_diff")
@@ -173,7 +177,7 @@ def drop_timing(obj: Any) -> Any:
     """``obj`` without timing keys, at any depth (and, with --ignore-code-version, with every
     code-version string, e.g. the ``inputs`` map of input file -> code version, masked)."""
     if isinstance(obj, dict):
-        return {k: drop_timing(v) for k, v in obj.items() if k not in TIMING_KEYS}
+        return {k: drop_timing(v) for k, v in obj.items() if not is_timing(k)}
     if isinstance(obj, list):
         return [drop_timing(v) for v in obj]
     if IGNORE_CODE_VERSION and isinstance(obj, str) and CODE_VERSION.match(obj):
@@ -205,7 +209,7 @@ def frames_equal(a: pd.DataFrame, b: pd.DataFrame) -> str | None:
 def compare_parquet(a: Path, b: Path) -> str | None:
     from crgpr.io import read_metadata
 
-    da, db = (d.drop(columns=[c for c in d.columns if c in TIMING_COLUMNS])
+    da, db = (d.drop(columns=[c for c in d.columns if is_timing(c)])
               for d in (pd.read_parquet(a), pd.read_parquet(b)))
     why = frames_equal(da, db)
     if why:
@@ -257,7 +261,7 @@ def compare_pt(a: Path, b: Path) -> str | None:
         if isinstance(x, torch.Tensor):
             if not (isinstance(y, torch.Tensor) and x.dtype == y.dtype and torch.equal(x, y)):
                 return f"tensor {k} differs"
-        elif drop_timing(x) != drop_timing(y) and k.rsplit(".", 1)[-1] not in TIMING_KEYS:
+        elif drop_timing(x) != drop_timing(y) and not is_timing(k.rsplit(".", 1)[-1]):
             return f"entry {k} differs"
     return None
 
@@ -273,7 +277,7 @@ def _flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
 
 def compare_csv(a: Path, b: Path) -> str | None:
     def without_timing(d: pd.DataFrame) -> pd.DataFrame:
-        d = d.drop(columns=[c for c in d.columns if c in TIMING_COLUMNS])
+        d = d.drop(columns=[c for c in d.columns if is_timing(c)])
         if "source" in d.columns:
             rows = d["source"] == TIMING_ROW_SOURCE
             for c in TIMING_ROW_COLUMNS:

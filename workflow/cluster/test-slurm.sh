@@ -10,9 +10,10 @@
 #   2. starts munged, slurmctld and slurmd directly (no systemd, no slurmdbd), bound to
 #      127.0.0.1, with a slurm.conf generated from this machine's hostname, cores and memory and
 #      every state, spool, log and socket path under a scratch directory;
-#   3. runs `snakemake all --configfile tests/smoke_config.yaml` locally (profiles/default) and
-#      through Slurm (profiles/slurm, plus the two flags this accounting-free cluster needs),
-#      each into its own directory under the scratch directory, the Slurm run under `timeout`;
+#   3. runs `snakemake TARGETS --configfile tests/smoke_config.yaml` (TARGETS: see
+#      CRGPR_SLURM_TARGETS below) locally (profiles/default) and through Slurm (profiles/slurm,
+#      plus the flags this accounting-free cluster needs and a 1 s status polling start), each
+#      into its own directory under the scratch directory, each under `timeout`;
 #   4. workflow/cluster/check_slurm_run.py checks that every job went through sbatch (a Slurm
 #      job id, a per-job Slurm log, state COMPLETED in slurmctld's job-completion log, and the
 #      CPUs, memory and time limit Slurm granted equal to the rule's threads, mem_mb, runtime),
@@ -20,9 +21,14 @@
 #   5. on exit, also on failure or Ctrl-C: cancels leftover jobs, stops slurmd, slurmctld and
 #      munged by their PIDs, checks that none is left, removes the scratch directory.
 #
-# Exit codes: 0 all checks hold, 77 skipped (not root, or slurm-wlm/munge not installable),
-# anything else a failure.
-# Environment: CRGPR_SLURM_TIMEOUT (seconds for the Slurm run, default 1200),
+# Exit codes: 0 all checks hold, 77 skipped (not root; slurm-wlm/munge missing and no apt-get
+# or not installable; the slurm extra not installable; /etc/slurm/slurm.conf taken), anything
+# else a failure.
+# Environment: CRGPR_SLURM_TARGETS: the Snakemake targets of both runs, separated by blanks, or
+# @FILE for the targets listed in FILE (one a line, `#` comments; relative to the repository
+# root); default `all` (the whole smoke workflow, 78 jobs). CI uses
+# @workflow/cluster/ci_targets.txt (a 16-job sub-DAG through every stage kind).
+# CRGPR_SLURM_TIMEOUT (seconds for each of the two runs, default 1200),
 # CRGPR_SLURM_KEEP=1 keeps the scratch directory, CRGPR_SLURM_SCRATCH sets its parent (/tmp),
 # CRGPR_SLURM_LOCAL_RUN=DIR puts the local run in DIR instead (kept; Snakemake only runs what is
 # missing there, so a finished local run is reused; one made at another commit fails the
@@ -31,6 +37,7 @@ set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 TIMEOUT=${CRGPR_SLURM_TIMEOUT:-1200}
+TARGETS_SPEC=${CRGPR_SLURM_TARGETS:-all}
 T_START=$(date +%s)
 declare -A TIMINGS=()
 TIMING_ORDER=()
@@ -135,7 +142,10 @@ with open(sys.argv[1], "rb") as f:
 EOF
 )
 if ! python -c 'import snakemake_executor_plugin_slurm' 2>/dev/null; then
-    python -m pip install -q "${SLURM_EXTRA[@]}"
+    python -m pip install -q "${SLURM_EXTRA[@]}" > "/tmp/test-slurm-pip.$$.log" 2>&1 \
+        || { tail -5 "/tmp/test-slurm-pip.$$.log"; rm -f "/tmp/test-slurm-pip.$$.log"
+             skip "pip could not install the slurm extra (${SLURM_EXTRA[*]})"; }
+    rm -f "/tmp/test-slurm-pip.$$.log"
 fi
 PLUGIN_VERSION=$(python -c 'from importlib.metadata import version; print(version("snakemake-executor-plugin-slurm"))')
 log "slurm $(slurmctld -V | awk '{print $2}'), $(munged -V | awk '{print $1}'), snakemake $(snakemake --version), plugin $PLUGIN_VERSION"
@@ -236,29 +246,45 @@ log "node $HOST up: $CPUS CPUs, RealMemory=$MEM_MB MB, ports $CTLD_PORT/$SLURMD_
 step_end
 
 # ---------------------------------------------------------------------------------------------
-SMOKE=("all" --snakefile "$ROOT/Snakefile" --configfile "$ROOT/tests/smoke_config.yaml")
+if [[ $TARGETS_SPEC == @* ]]; then
+    TARGETS_FILE=${TARGETS_SPEC#@}
+    [[ $TARGETS_FILE == /* ]] || TARGETS_FILE=$ROOT/$TARGETS_FILE
+    [[ -f $TARGETS_FILE ]] || die "CRGPR_SLURM_TARGETS: no file $TARGETS_FILE"
+    mapfile -t TARGETS < <(sed -e 's/#.*//' -e 's/^[[:space:]]*//' -e 's/[[:space:]]*$//' "$TARGETS_FILE" | grep -v '^$')
+else
+    read -r -a TARGETS <<< "$TARGETS_SPEC"
+fi
+(( ${#TARGETS[@]} )) || die "CRGPR_SLURM_TARGETS names no target"
+log "targets: ${TARGETS[*]}"
+SMOKE=("${TARGETS[@]}" --snakefile "$ROOT/Snakefile" --configfile "$ROOT/tests/smoke_config.yaml")
+
+run_timed() {  # run_timed NAME LOG CMD...: CMD under timeout, its output in LOG; die on failure
+    local name=$1 out=$2 rc=0
+    shift 2
+    timeout --kill-after=30 "$TIMEOUT" "$@" > "$out" 2>&1 || rc=$?
+    if [[ $rc != 0 ]]; then
+        tail -40 "$out" >&2
+        [[ $rc == 124 || $rc == 137 ]] && die "$name timed out (${TIMEOUT} s) or was stopped (exit $rc)"
+        die "$name failed (exit $rc)"
+    fi
+}
 
 LOCAL=${CRGPR_SLURM_LOCAL_RUN:-$SCRATCH/local}
 step_start "local smoke run (-j$CPUS)"
-snakemake "${SMOKE[@]}" -d "$LOCAL" --workflow-profile "$ROOT/profiles/default" -j "$CPUS" \
-    > "$SCRATCH/local.log" 2>&1 || { tail -40 "$SCRATCH/local.log" >&2; die "local smoke run failed"; }
+run_timed "local smoke run" "$SCRATCH/local.log" \
+    snakemake "${SMOKE[@]}" -d "$LOCAL" --workflow-profile "$ROOT/profiles/default" -j "$CPUS"
 step_end
 
 step_start "smoke run through the SLURM executor"
-# The two flags are for this cluster without accounting (no sacct): poll with squeue, first
-# poll after 5 s (the plugin accepts squeue only if MinJobAge >= 3 x that delay).
-set +e
-timeout --kill-after=30 "$TIMEOUT" snakemake "${SMOKE[@]}" -d "$SCRATCH/slurm" \
+# For this cluster without accounting (no sacct): poll with squeue (the plugin accepts squeue
+# only if MinJobAge >= 3 x the first-poll delay). First poll 1 s after a submission or after a
+# poll that saw a job finish; the plugin adds 10 s to the delay after each poll that saw none
+# finish (fixed in plugin 2.8, up to 180 s), so a job's end is noticed within its last delay.
+run_timed "Slurm run" "$SCRATCH/slurm.log" \
+    snakemake "${SMOKE[@]}" -d "$SCRATCH/slurm" \
     --workflow-profile "$ROOT/profiles/slurm" \
-    --slurm-status-command squeue --slurm-init-seconds-before-status-checks 5 \
-    --slurm-keep-successful-logs > "$SCRATCH/slurm.log" 2>&1
-SLURM_RC=$?
-set -e
-if [[ $SLURM_RC != 0 ]]; then
-    tail -40 "$SCRATCH/slurm.log" >&2
-    [[ $SLURM_RC == 124 ]] && die "Slurm run did not finish in ${TIMEOUT} s"
-    die "Slurm run failed (exit $SLURM_RC)"
-fi
+    --slurm-status-command squeue --slurm-init-seconds-before-status-checks 1 \
+    --seconds-between-status-checks 1 --slurm-keep-successful-logs
 step_end
 
 # ---------------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ rule blackbox_train:
         "benchmarks/baselines/blackbox_train.tsv"
     threads: 1
     resources:
-        mem_mb=500,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV

@@ -47,7 +47,7 @@ rule camera_data:
         "benchmarks/camera/data_{noise}mm.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV
@@ -75,7 +75,7 @@ rule camera_learn:
     priority: 10  # long and ready early: started first, so short jobs fill the end of the run
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=4750,
         runtime=15,
     conda:
         ENV
@@ -100,8 +100,8 @@ rule camera_rollout:
         "benchmarks/rollouts/cr_gpr_objective_camera/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
-        runtime=10,
+        mem_mb=500,
+        runtime=5,
     conda:
         ENV
     script:

@@ -34,7 +34,7 @@ rule discovery_data:
         "benchmarks/discovery/data_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV
@@ -64,8 +64,8 @@ rule discovery_run:
         "benchmarks/discovery/run_{case}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
-        runtime=5,
+        mem_mb=750,
+        runtime=10,
     conda:
         ENV
     script:
@@ -97,7 +97,7 @@ rule discovery_summary:
         "benchmarks/discovery/summary.tsv"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=500,
         runtime=5,
     conda:
         ENV

@@ -41,7 +41,7 @@ rule gradient_model:
     priority: 10  # long and ready early: started first, so short jobs fill the end of the run
     threads: 1
     resources:
-        mem_mb=4500,
+        mem_mb=5000,
         runtime=20,
     conda:
         ENV
@@ -68,7 +68,7 @@ rule gradient_model_paper_hyp:
         "benchmarks/models/{prefilter}_paper_hyp/{model}.tsv"
     threads: 1
     resources:
-        mem_mb=4500,
+        mem_mb=5000,
         runtime=10,
     conda:
         ENV

@@ -35,7 +35,7 @@ rule pinn_train:
     threads: 1  # torch on one thread: two threads on a shared 2-core box run 10x slower
     resources:
         mem_mb=3000,
-        runtime=10,
+        runtime=15,
     conda:
         ENV
     script:
@@ -60,7 +60,7 @@ rule pinn_rollout:
         "benchmarks/baselines/pinn_rollout/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=1000,
         runtime=5,
     conda:
         ENV

@@ -23,7 +23,7 @@ rule prefilter:
         "benchmarks/prefilter/{method}/{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV

@@ -222,11 +222,12 @@ rule timing:
         stage_files={
             "stage1": {"sum": [f"benchmarks/prefilter/gp/{TRAIN}.tsv"]},
             "stage2": {"sum": [f"benchmarks/models/gp/{m}.tsv" for m in TIMED_MODELS]},
-            "stage3": {"mean": [f"benchmarks/rollouts/cr_gpr/{a}.tsv" for a in TEST]},
+            "stage3": {"mean": ["benchmarks/rollouts/cr_gpr.tsv"], "per_job": len(TEST)},  # one batch job
             "stage4": {
                 "sum": [f"benchmarks/uq/{UQ_METHODS[0]}/samples/{Path(s).name}.tsv"
                         for s in _uq_models(UQ_METHODS[0])],
-                "mean": [f"benchmarks/uq/{UQ_METHODS[0]}/rollout/{a}.tsv" for a in UQ["angles_deg"]],
+                "mean": [f"benchmarks/uq/{UQ_METHODS[0]}/rollout.tsv"],  # all angles in one batch
+                "per_job": len(UQ["angles_deg"]),
             },
         },
     log:
@@ -236,7 +237,7 @@ rule timing:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:
@@ -270,7 +271,7 @@ rule paper_tables:
     threads: 1
     resources:
         mem_mb=500,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:

@@ -13,21 +13,22 @@ rule rollout:
         code=code_closure("rollout.py"),
         models=lambda wc: _model_files(RESULTS, config["rollouts"]["methods"][wc.method]),
     output:
-        traj=f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
-        energy=f"{RESULTS}/rollouts/{{method}}/{{angle}}_energy.parquet",
+        # all test angles of one method in one batch (crgpr.learning.learned.run_rollouts)
+        traj=expand(f"{RESULTS}/rollouts/{{{{method}}}}/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        energy=expand(f"{RESULTS}/rollouts/{{{{method}}}}/{{angle}}_energy.parquet", angle=config["angles"]["test_deg"]),
     params:
         cfg=lambda wc: cfg_params("rod", "simulation", f"rollouts.methods.{wc.method}"),
+        angles=config["angles"]["test_deg"],
     wildcard_constraints:
         method="|".join(CRGPR_METHODS),
-        angle=r"-?\d+",
     log:
-        "logs/rollouts/{method}/{angle}.log",
+        "logs/rollouts/{method}.log",
     benchmark:
-        "benchmarks/rollouts/{method}/{angle}.tsv"
+        "benchmarks/rollouts/{method}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
-        runtime=5,
+        mem_mb=1000,
+        runtime=10,
     conda:
         ENV
     script:

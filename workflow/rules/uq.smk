@@ -40,20 +40,21 @@ rule uq_rollout:
         samples=lambda wc: _uq_sample_files(wc.method),
         models=lambda wc: [f"{s}.json" for s in _uq_models(wc.method)],
     output:
-        f"{RESULTS}/uq/{{method}}/{{angle}}.parquet",
+        # all angles of one method in one batch of S x A rods (crgpr.uq.rollout)
+        expand(f"{RESULTS}/uq/{{{{method}}}}/{{angle}}.parquet", angle=UQ["angles_deg"]),
     wildcard_constraints:
         method="|".join(UQ_METHODS),
-        angle=r"-?\d+",
     params:
         cfg=cfg_params("uq", "rod", "simulation"),
         method_cfg=lambda wc: UQ_METHOD_CFG[wc.method],
+        angles=UQ["angles_deg"],
     log:
-        "logs/uq/{method}/rollout/{angle}.log",
+        "logs/uq/{method}/rollout.log",
     benchmark:
-        "benchmarks/uq/{method}/rollout/{angle}.tsv"
+        "benchmarks/uq/{method}/rollout.tsv"
     threads: 1
     resources:
-        mem_mb=2000,  # S = 64: trajectories (4001, S, N+1, 3) x 2 plus the stored table
+        mem_mb=3000,  # S x A = 96 rods: trajectories (4001, 96, N+1, 3) x 2 plus the stored tables
         runtime=30,
     conda:
         ENV
@@ -142,7 +143,7 @@ rule uq_figure:
         "benchmarks/uq/figure/{method}_{angle}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV
@@ -167,7 +168,7 @@ rule uq_reliability:
     threads: 1
     resources:
         mem_mb=1000,
-        runtime=2,
+        runtime=5,
     conda:
         ENV
     script:

@@ -63,7 +63,7 @@ use rule gradient_model as variant_gradient_model with:
 
 
 # rule rollout itself (a diverged rollout is written frozen and scored, as in the main run)
-use rule rollout as variant_rollout with:
+rule variant_rollout:
     input:
         code=code_closure("rollout.py"),
         models=lambda wc: v_model_files(wc.variant, wc.method),
@@ -72,6 +72,7 @@ use rule rollout as variant_rollout with:
         energy=f"{VROOT}/{{variant}}/rollouts/{{method}}/{{angle}}_energy.parquet",
     params:
         cfg=variant_params(rules.rollout),
+        angles=lambda wc: [int(wc.angle)],
     wildcard_constraints:
         variant=_VARIANT_RE,
         method="|".join(CRGPR_METHODS),
@@ -80,6 +81,14 @@ use rule rollout as variant_rollout with:
         "logs/variants/{variant}/rollouts/{method}/{angle}.log",
     benchmark:
         "benchmarks/variants/{variant}/rollouts/{method}/{angle}.tsv"
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/rollout.py"
 
 
 rule variant_metrics:

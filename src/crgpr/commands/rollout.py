@@ -14,9 +14,11 @@ from crgpr.config import ConfigError, load_config
 from crgpr.learning import learned
 
 
-def rollout(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str, model_json: str) -> None:
-    """Rule ``rollout``: integrate one method's learned rod from the straight rod at ``angle``."""
-    learned.run_rollout(cfg, method, float(angle), Path(model_json).parent, out, energy_out)
+def rollout(cfg: dict[str, Any], method: str, angles: list[int], outs: list[str], energy_outs: list[str],
+            model_json: str) -> None:
+    """Rule ``rollout``: integrate one method's learned rod from the straight rod at every angle
+    (one batch, ``learned.run_rollouts``), one trajectory and energy file per angle."""
+    learned.run_rollouts(cfg, method, [float(a) for a in angles], Path(model_json).parent, outs, energy_outs)
 
 
 def add_cli(sub: argparse._SubParsersAction) -> None:

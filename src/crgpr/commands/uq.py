@@ -2,7 +2,7 @@
 function name. Each takes the config values its rule passes as ``params``.
 
 uq_samples      S posterior samples of one gradient GP of one method
-uq_rollout      the S sampled models of one method through the rollout at one angle
+uq_rollout      the S sampled models of one method through the rollout at every angle (one batch)
 uq_coverage     coverage at every level, method and angle (+ the paper's S = 10 rows)
 uq_calibration  function-level calibration of the gradient GPs on the test trajectories
 uq_figure       rod shapes with the band (one method, one angle)
@@ -25,7 +25,7 @@ from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_from_frame
 from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, sample_arrays, summary_rows, truth_arrays
-from crgpr.uq.rollout import UQ_COLUMNS, rollout_samples, uq_frame
+from crgpr.uq.rollout import UQ_COLUMNS, rollout_samples_angles, uq_frame
 from crgpr.uq.samples import load_samples, sample_model
 from crgpr.uq.settings import UQSettings
 
@@ -56,10 +56,13 @@ def uq_samples(model_npz: str, uq: Mapping[str, Any], seed: int, out: str, diagn
 
 
 def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, method_cfg: Mapping[str, str],
-               angle: int, rod: Mapping[str, Any], simulation: Mapping[str, Any], uq: Mapping[str, Any],
-               out: str) -> None:
-    """Rule ``uq_rollout``: the S sampled models of ``method`` at ``angle`` (one batch); writes
-    every ``uq.store_every``-th record of every sample (``UQ_COLUMNS``, float32 states)."""
+               angles: Sequence[int], rod: Mapping[str, Any], simulation: Mapping[str, Any],
+               uq: Mapping[str, Any], outs: Sequence[str]) -> None:
+    """Rule ``uq_rollout``: the S sampled models of ``method`` at every angle (one batch of S x A
+    rods, ``rollout_samples_angles``); writes, per angle, every ``uq.store_every``-th record of
+    every sample (``UQ_COLUMNS``, float32 states) to the matching file of ``outs``."""
+    if len(outs) != len(angles):
+        raise ValueError(f"uq_rollout: {len(angles)} angles but {len(outs)} output files")
     settings = UQSettings.from_section(dict(uq))
     params, sim = RodParams.from_dict(dict(rod)), _sim(simulation)
     smp = load_samples({Path(p).stem: p for p in samples}, settings.kernel_tol)
@@ -68,19 +71,22 @@ def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, metho
              settings.kernel_tol, bounds)
     center = theta_center(models, method_cfg["features"])
     t0 = time.perf_counter()
-    t, q, p, keep, diverged = rollout_samples(smp, method_cfg["features"], params, center, float(angle), sim)
+    res = rollout_samples_angles(smp, method_cfg["features"], params, center, [float(a) for a in angles], sim)
     secs = time.perf_counter() - t0
-    log.info("%s at %d deg: %d samples integrated in %.1f s (%d diverged)", method, angle, len(keep), secs,
-             len(diverged))
     k = int(uq["store_every"])
-    df = uq_frame(float(angle), t[::k], q[:, ::k], p[:, ::k], keep, params.ds)
-    df = df.astype({c: np.float32 for c in ("x", "y", "theta", "p_x", "p_y", "p_theta")})
-    meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle, "features": method_cfg["features"],
-            "n_samples": settings.n_samples, "n_diverged": len(diverged), "diverged": diverged,
-            "kernel_truncation_bound": bounds,
-            "seconds_rollout": secs, "store_every": k, "settings": settings.to_dict(),
-            "rod": params.to_dict(), "simulation": sim.to_dict()}
-    write_parquet(df, out, meta)
+    for angle, out in zip(angles, outs, strict=True):
+        t, q, p, keep, diverged = res[float(angle)]
+        log.info("%s at %d deg: %d samples kept (%d diverged)", method, angle, len(keep), len(diverged))
+        df = uq_frame(float(angle), t[::k], q[:, ::k], p[:, ::k], keep, params.ds)
+        df = df.astype({c: np.float32 for c in ("x", "y", "theta", "p_x", "p_y", "p_theta")})
+        meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle,
+                "features": method_cfg["features"], "n_samples": settings.n_samples,
+                "n_diverged": len(diverged), "diverged": diverged,
+                "kernel_truncation_bound": bounds, "batch_angles": list(angles),
+                "seconds_rollout": secs / len(angles), "seconds_rollout_batch": secs, "store_every": k,
+                "settings": settings.to_dict(), "rod": params.to_dict(), "simulation": sim.to_dict()}
+        write_parquet(df, out, meta)
+    log.info("%s: %d angles x %d samples integrated in %.1f s", method, len(angles), settings.n_samples, secs)
 
 
 def _method_angle(path: str) -> tuple[str, int]:

@@ -475,8 +475,8 @@ class CompressedSamples:
     @classmethod
     def from_arrays(cls, arr: dict[str, np.ndarray]) -> CompressedSamples:
         return cls(arr["omega"], arr["phase"], arr["w"], arr["Z"], arr["a"], arr["beta"],
-                   float(arr["sigma_f"]), arr["lengthscales"], arr["x_mean"], arr["x_std"],
-                   str(arr["basis"]), float(arr["y_mean"]), float(arr["y_scale"]))
+                   np.asarray(arr["sigma_f"]).item(), arr["lengthscales"], arr["x_mean"], arr["x_std"],
+                   str(arr["basis"]), np.asarray(arr["y_mean"]).item(), np.asarray(arr["y_scale"]).item())
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Evaluate sample s at x[s]: x (S, m, d) raw inputs -> (S, m)."""

@@ -30,7 +30,8 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -42,7 +43,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
-from crgpr.physics.integrator import SimulationDiverged, run_hamiltonian
+from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, node_weights, straight_rod
 from crgpr.physics.simulate import Trajectory, trajectory_frame
@@ -240,9 +241,86 @@ def frozen_after_divergence(part: Trajectory, settings: SimSettings) -> Trajecto
     return Trajectory(part.theta0_deg, t, q, p, part.params)
 
 
+@dataclass
+class MemberRun:
+    """One rod of a batched rollout: its records (t, q, p, integrator's dissipated energy) up to
+    the end of the run or, if it left the physical range, up to its last good record
+    (``diverged``: t_s, step and node of the integrator's verdict)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    p: np.ndarray
+    dissipated: np.ndarray
+    diverged: dict[str, Any] | None = None
+
+
+def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarray, keys: np.ndarray,
+                    params: RodParams, settings: SimSettings, what: str) -> list[MemberRun]:
+    """Integrate B rods as one batch from rest at the configurations q0 (B, N+1, 3) (eq. (17),
+    the ground truth's scheme, dt and boundary conditions); rod b is driven by member b of
+    ``model_for(keys[alive])`` (a mean model for every rod, or posterior sample keys[b]). Rods
+    are independent: each gets the numbers it gets alone. A rod that leaves the physical range
+    is taken out with its records up to the last good one; the others resume from that record
+    (the scheme's full state, so bit for bit the uninterrupted run), no restart from t = 0."""
+    P = params
+    B = q0.shape[0]
+    alive = np.arange(B)
+    q, p = np.array(q0, dtype=float), np.zeros_like(q0, dtype=float)
+    length = rod_length(q)
+    dt, every = settings.dt, settings.record_every
+    k0, n_left = 0, settings.n_steps
+    diss0 = np.zeros(B)
+    pieces: list[tuple[np.ndarray, Any]] = []
+    div: dict[int, dict[str, Any]] = {}
+    while len(alive):
+        rod = model_for(keys[alive])
+        try:
+            out = run_hamiltonian(q, p, rod.force, rod.velocity, free_mask(P), P.zeta, dt, n_left, every,
+                                  rod.wds, what, velocity_slope=rod.velocity_slope, length=length)
+        except SimulationDiverged as exc:
+            part = exc.partial
+            if exc.members is None or len(exc.members) == 0 or part is None or len(part.t) == 0:
+                raise
+            pieces.append((alive.copy(), part, k0, diss0[alive].copy()))
+            bad = np.unique(exc.members[:, 0])
+            for j in bad:
+                div[int(alive[j])] = {"t_s": float(exc.t) + k0 * dt, "step": int(exc.step) + k0,
+                                      "node": int(exc.node)}
+            good = np.setdiff1d(np.arange(len(alive)), bad)
+            r = len(part.t) - 1
+            q, p = part.q[r][good], part.v[r][good]
+            diss0[alive[good]] += part.dissipated[r][good]
+            alive = alive[good]
+            k0 += r * every
+            n_left -= r * every
+            continue
+        pieces.append((alive.copy(), out, k0, diss0[alive].copy()))
+        break
+    runs = []
+    for b in range(B):
+        mine = [(int(np.flatnonzero(mem == b)[0]), pc, k, d0) for mem, pc, k, d0 in pieces if b in mem]
+        # a resume record is the next piece's first: every piece but the member's last loses it
+        cuts = [len(pc.t) - 1 for _, pc, _, _ in mine[:-1]] + [len(mine[-1][1].t)]
+        parts = list(zip(mine, cuts, strict=True))
+        runs.append(MemberRun(
+            t=np.concatenate([pc.t[:c] + k * dt for (_, pc, k, _), c in parts]),
+            q=np.concatenate([pc.q[:c, j] for (j, pc, _, _), c in parts]),
+            p=np.concatenate([pc.v[:c, j] for (j, pc, _, _), c in parts]),
+            dissipated=np.concatenate([pc.dissipated[:c, j] + d0[j] for (j, pc, _, d0), c in parts]),
+            diverged=div.get(b)))
+    return runs
+
+
 def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str | Path, out: str | Path,
                 energy_out: str | Path | None = None) -> Trajectory:
-    """Roll one method out at one angle (eq. (17)) and write it; returns the written trajectory.
+    """``run_rollouts`` at one angle; returns the written trajectory."""
+    return run_rollouts(cfg, method, [angle], model_dir, [out], [energy_out])[0]
+
+
+def run_rollouts(cfg: dict[str, Any], method: str, angles: Sequence[float], model_dir: str | Path,
+                 outs: Sequence[str | Path], energy_outs: Sequence[str | Path | None]) -> list[Trajectory]:
+    """Roll one method out at every angle (eq. (17)), all angles as one batch
+    (``rollout_members``), and write one file per angle; returns the written trajectories.
 
     A rollout that diverges (``SimulationDiverged``, the integrator's plausibility check) is a
     result, not an error: the file holds ``frozen_after_divergence`` of it, with ``diverged``,
@@ -253,25 +331,30 @@ def run_rollout(cfg: dict[str, Any], method: str, angle: float, model_dir: str |
     params, settings = rod_params(cfg), sim_settings(cfg)
     model = LearnedRod.from_dir(model_dir, spec["features"], params)
     t0 = time.perf_counter()
-    meta: dict[str, Any] = {"kind": "rollout", "method": method, "theta0_deg": angle,
-                            "features": spec["features"], "prefilter": spec["prefilter"],
-                            "model_dir": str(model_dir), "rod": params.to_dict(),
-                            "simulation": settings.to_dict(), "diverged": False}
-    try:
-        traj = before = rollout(model, angle, settings, what=f"{method} rollout at theta0 = {angle:g} deg")
-    except SimulationDiverged as exc:
-        if exc.partial is None:
-            raise
-        log.warning("%s", exc)
-        p = exc.partial
-        before = Trajectory(float(angle), p.t, p.q, p.v, params, p.dissipated)
-        traj = frozen_after_divergence(before, settings)
-        meta.update(diverged=True, t_diverged=float(exc.t), node_diverged=int(exc.node),
-                    step_diverged=int(exc.step))
-    meta["seconds"] = time.perf_counter() - t0
-    log.info("%s at %g deg: %.1f s%s", method, angle, meta["seconds"],
-             f", diverged at t = {meta['t_diverged']:.4g} s" if meta["diverged"] else "")
-    write_parquet(trajectory_frame(traj), out, meta)
-    if energy_out is not None:
-        write_parquet(learned_energy(model, before), energy_out, {**meta, "kind": "rollout_energy"})
-    return traj
+    q0 = np.stack([straight_rod(math.radians(a), params) for a in angles])
+    what = f"{method} rollout at theta0 = {', '.join(f'{a:g}' for a in angles)} deg"
+    runs = rollout_members(lambda keys: model, q0, np.arange(len(angles)), params, settings, what)
+    secs = time.perf_counter() - t0
+    trajs = []
+    for angle, run, out, energy_out in zip(angles, runs, outs, energy_outs, strict=True):
+        meta: dict[str, Any] = {"kind": "rollout", "method": method, "theta0_deg": angle,
+                                "features": spec["features"], "prefilter": spec["prefilter"],
+                                "model_dir": str(model_dir), "rod": params.to_dict(),
+                                "simulation": settings.to_dict(), "diverged": False,
+                                "seconds": secs / len(angles), "seconds_batch": secs,
+                                "batch_angles": [float(a) for a in angles]}
+        traj = before = Trajectory(float(angle), run.t, run.q, run.p, params, run.dissipated)
+        if run.diverged is not None:
+            log.warning("%s at %g deg left the physical range at t = %.4g s (node %d)", method, angle,
+                        run.diverged["t_s"], run.diverged["node"])
+            traj = frozen_after_divergence(before, settings)
+            meta.update(diverged=True, t_diverged=run.diverged["t_s"], node_diverged=run.diverged["node"],
+                        step_diverged=run.diverged["step"])
+        log.info("%s at %g deg%s", method, angle,
+                 f", diverged at t = {meta['t_diverged']:.4g} s" if meta["diverged"] else "")
+        write_parquet(trajectory_frame(traj), out, meta)
+        if energy_out is not None:
+            write_parquet(learned_energy(model, before), energy_out, {**meta, "kind": "rollout_energy"})
+        trajs.append(traj)
+    log.info("%s: %d angles in %.1f s", method, len(angles), secs)
+    return trajs

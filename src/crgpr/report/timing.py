@@ -3,12 +3,14 @@
 Stage definitions (paper Table "Computational cost"):
 1. GP prefiltering of the training trajectory (prefilter job of the training angle),
 2. gradient learning (sum of the six gradient-model jobs),
-3. one CR-GPR forward simulation (mean over the rollout jobs of ``cr_gpr``),
+3. one CR-GPR forward simulation (the ``cr_gpr`` rollout job integrates all test angles in one
+   batch: its time / the number of angles),
 4. UQ / RFF sampling: drawing the S function samples (once) plus one angle's S-sample rollout
-   (mean over the UQ rollout jobs).
+   (the UQ rollout job integrates all angles in one batch: its time / the number of angles).
 
-Each stage is given as ``{"sum": [files], "mean": [files]}``: its minutes are the sum of the
-first group plus the mean of the second (one job of a per-angle stage).
+Each stage is given as ``{"sum": [files], "mean": [files], "per_job": n}``: its minutes are the
+sum of the first group plus the mean of the second divided by ``per_job`` (default 1; the
+angles one job of a per-angle stage covers).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import os
 import platform
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -49,15 +52,17 @@ def read_benchmark(path: str | Path) -> float:
     return float(df["s"].mean())
 
 
-def timing_table(stage_files: dict[str, dict[str, list[str]]]) -> pd.DataFrame:
-    """One row per stage: minutes = sum of the "sum" files + mean of the "mean" files."""
+def timing_table(stage_files: dict[str, dict[str, Any]]) -> pd.DataFrame:
+    """One row per stage: minutes = sum of the "sum" files + mean of the "mean" files / per_job."""
     rows = []
     for stage, groups in stage_files.items():
         summed = [read_benchmark(f) for f in groups.get("sum", [])]
         averaged = [read_benchmark(f) for f in groups.get("mean", [])]
-        secs = float(np.sum(summed)) + (float(np.mean(averaged)) if averaged else 0.0)
+        per = int(groups.get("per_job", 1))
+        secs = float(np.sum(summed)) + (float(np.mean(averaged)) / per if averaged else 0.0)
         how = " + ".join(x for x in (f"sum of {len(summed)}" if summed else "",
-                                      f"mean of {len(averaged)}" if averaged else "") if x)
+                                      (f"mean of {len(averaged)}" + (f" / {per}" if per != 1 else ""))
+                                      if averaged else "") if x)
         rows.append({"stage": stage, "description": DESCRIPTION[stage], "minutes": secs / 60.0,
                      "jobs": len(summed) + len(averaged), "how": how,
                      "paper_minutes": PAPER_MINUTES[stage], "machine": machine()})

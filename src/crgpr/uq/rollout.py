@@ -7,23 +7,26 @@ learned H_z of eq. (17) and the same rollout (``learned.rollout`` -> the Stormer
 of ``physics.integrator.run_hamiltonian``, dt, boundary conditions) as the mean models; sample
 s drives rod s of the batch, so the state is (S, N+1, 3).
 
-Divergence: the integrator decides what has left the physical range (its thresholds) and names
-the batch members; those samples are recorded and dropped, and the rest are integrated again
-from t = 0 (a sample is never silently kept or silently lost).
+All angles form one batch (S x A rods, ``rollout_samples_angles``). Divergence: the integrator
+decides what has left the physical range (its thresholds) and names the batch members; those
+samples are recorded and dropped, and the rest resume from the last good record (a sample is
+never silently kept or silently lost).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from crgpr.learning.learned import LearnedRod, rollout
+from crgpr.learning.learned import LearnedRod, rollout_members
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import straight_rod
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 from crgpr.uq.samples import SampleSet, select_samples
 
@@ -42,38 +45,50 @@ def sampled_rod(samples: Mapping[str, SampleSet], features: str, params: RodPara
 
 
 def rollout_samples(samples: Mapping[str, SampleSet], features: str, params: RodParams,
-                    theta_center: float | None, theta0_deg: float, settings: SimSettings,
-                    max_restarts: int = 5
+                    theta_center: float | None, theta0_deg: float, settings: SimSettings
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
-    """Integrate all S sampled models at once; returns t (n_t,), q and p (S', n_t, N+1, 3) of
-    the S' samples that stayed in the physical range, their indices, and the divergence
-    records of the others (sample, t_s, step)."""
+    """Integrate all S sampled models at once at one angle; returns t (n_t,), q and p
+    (S', n_t, N+1, 3) of the S' samples that stayed in the physical range, their indices, and the
+    divergence records of the others (sample, t_s, step). See ``rollout_samples_angles``."""
+    res = rollout_samples_angles(samples, features, params, theta_center, [theta0_deg], settings)
+    return res[float(theta0_deg)]
+
+
+def rollout_samples_angles(samples: Mapping[str, SampleSet], features: str, params: RodParams,
+                           theta_center: float | None, theta0_degs: Sequence[float], settings: SimSettings,
+                           ) -> dict[float, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                  list[dict[str, Any]]]]:
+    """All S sampled models at every angle as ONE batch of S x A rods (member (a, s): sample s
+    released at angle a; ``learned.rollout_members``), so the per-step work outside the compiled
+    kernels is shared; per angle the result of ``rollout_samples``. A sample that leaves the
+    physical range is recorded and dropped (the others resume, bit for bit the uninterrupted
+    run); fewer than 2 samples left at an angle is an error."""
+    angles = [float(a) for a in theta0_degs]
     S = next(iter(samples.values())).n_samples
-    keep = np.arange(S)
-    diverged: list[dict[str, Any]] = []
-    for _ in range(max_restarts + 1):
-        comps = samples if len(keep) == S else {m: select_samples(s, keep) for m, s in samples.items()}
-        rod = sampled_rod(comps, features, params, theta_center)
-        try:
-            traj = rollout(rod, theta0_deg, settings, what=f"UQ rollout at theta0 = {theta0_deg:g} deg",
-                           n_batch=len(keep))
-        except SimulationDiverged as exc:
-            if exc.members is None or len(exc.members) == 0:
-                raise
-            bad = np.unique(exc.members[:, 0])
-            for j in bad:
-                diverged.append({"sample": int(keep[j]), "t_s": exc.t, "step": exc.step})
-                log.warning("sample %d diverged at t = %.4g s; dropped, batch restarted", keep[j], exc.t)
-            keep = np.delete(keep, bad)
-            if len(keep) < 2:
-                raise SimulationDiverged(f"UQ rollout at {theta0_deg:g} deg: fewer than 2 samples left "
-                                         f"({diverged})", exc.step, exc.t, exc.node) from exc
-            continue
-        q = np.moveaxis(traj.q, 1, 0)  # (S', n_t, N+1, 3)
-        p = np.moveaxis(traj.p, 1, 0)
-        return traj.t, q, p, keep, diverged
-    raise SimulationDiverged(f"UQ rollout at {theta0_deg:g} deg: more than {max_restarts} divergence "
-                             f"restarts ({diverged})", -1, float("nan"), -1)
+    members = np.array([(a, s) for a in range(len(angles)) for s in range(S)], dtype=int)
+    q0 = np.stack([straight_rod(math.radians(angles[a]), params) for a, _ in members])
+
+    def model_for(keys: np.ndarray) -> LearnedRod:
+        return sampled_rod({m: select_samples(smp, keys) for m, smp in samples.items()}, features, params,
+                           theta_center)
+
+    what = f"UQ rollout at theta0 = {', '.join(f'{a:g}' for a in angles)} deg"
+    runs = rollout_members(model_for, q0, members[:, 1], params, settings, what)
+    out = {}
+    for a, angle in enumerate(angles):
+        idx = np.flatnonzero(members[:, 0] == a)
+        div = [{"sample": int(members[i, 1]), **{k: runs[i].diverged[k] for k in ("t_s", "step")}}
+               for i in idx if runs[i].diverged is not None]
+        for d in div:
+            log.warning("sample %d at %g deg diverged at t = %.4g s; dropped", d["sample"], angle, d["t_s"])
+        ok = [i for i in idx if runs[i].diverged is None]
+        if len(ok) < 2:
+            last = div[-1] if div else {"step": -1, "t_s": float("nan")}
+            raise SimulationDiverged(f"UQ rollout at {angle:g} deg: fewer than 2 samples left ({div})",
+                                     last["step"], last["t_s"], -1)
+        out[angle] = (runs[ok[0]].t, np.stack([runs[i].q for i in ok]), np.stack([runs[i].p for i in ok]),
+                      members[ok, 1], div)
+    return out
 
 
 def uq_frame(theta0_deg: float, t: np.ndarray, q: np.ndarray, p: np.ndarray, samples: np.ndarray,
