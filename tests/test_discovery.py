@@ -218,17 +218,20 @@ def runs(cfg, tmp_path_factory):
     return get
 
 
-# Measured misses on these 0.8 s smoke records (pytest -n 2 on a clean clone, 23 Nov, after the
-# discovery2 merge): REGRESSIONS of the whole-record joint initial-state fit, whose 8 free
-# initial-state corrections absorb part of a weak effect on a short record. The full config's
-# 1 s records name all four correctly (results/tables/discovery.csv); not fixed yet (a prior on
-# the corrections is the proposed fix, environment-notes "Missing physics, issue 15").
-_REGRESSION = "REGRESSION (discovery2 joint initial-state fit) on the 0.8 s record: "
+# Measured misses on these 0.8 s records. The joint initial-state fit (discovery2) let the
+# initial state absorb most of a weak effect on a short record (viscous drag: 0.099 rad from
+# the true release, 0.018 rad from the fitted initial state), so the nominal gap fell below
+# the "none" threshold; the hidden-by-initial-state continuation (disc3, selection.entry_threshold)
+# names viscous_drag, rest_curvature and base_compliance again (measured 23 Nov: 0.0401, 1.034,
+# 0.235; on rest_curvature a stiffness_gradient proxy entered first and left the model at its
+# floor: the continuation added rest_curvature, backward elimination dropped the proxy).
+# internal_damping is still missed (measured with the continuation, 23 Nov): the nominal gap is
+# hidden (0.0189 rad, floor 0.0110) and the cut-moment residual shows no candidate (Kelvin-Voigt
+# BIC gain -1.3: the curvature rate of noisy camera angles), so there is nothing to try.
 KNOWN_MISSES: dict[str, str] = {
-    "viscous_drag": _REGRESSION + "verdict none (effect absorbed by the initial state)",
-    "rest_curvature": _REGRESSION + "verdict unexplained, stiffness_gradient 0.23 named closing 42 %",
-    "base_compliance": _REGRESSION + "verdict none",
-    "internal_damping": _REGRESSION + "verdict none",
+    "internal_damping": "verdict none: nominal gap 0.0189 rad within min_gap_rad of its floor 0.0110 "
+                        "(the fitted initial state absorbs the damping on 0.8 s) and no candidate "
+                        "with residual evidence (internal_damping BIC gain -1.3) for the continuation",
 }
 
 
@@ -253,10 +256,12 @@ def test_hidden_effect_is_named_and_closes_the_gap(runs, case, cfg):
     assert math.isfinite(top["coefficient_std"]) and top["coefficient_std"] > 0
 
 
-@pytest.mark.xfail(reason="full config (discovery2, 22 Nov): tip_mass 0.0097, stiffness_scale 0.29 "
-                          "and a drag named, no fourth, but the drag as air_drag: viscous_drag's "
-                          "linearised score ranked below air_drag's when the drag entered, and no "
-                          "swap step replaces a named effect by a correlated one", strict=False)
+@pytest.mark.xfail(reason="0.8 s record (disc3, 23 Nov): tip_mass 0.0059, viscous_drag 0.091 (air_drag "
+                          "entered, the replacement step swapped it, delta BIC 11.7) and nonlinear_stiffness "
+                          "0.00077 named: stiffness_scale fitted better (RMSE 0.0116, delta BIC 222.7) but "
+                          "failed the sign test against the joint residual regression. Full config: "
+                          "air_drag named; viscous_drag in its place fits slightly worse (RMSE 0.0134 vs "
+                          "0.0128, delta BIC -9.6): not told apart by those data", strict=False)
 def test_three_effects_at_once_are_all_named_and_no_fourth(runs):
     truth, res = runs("three_effects")
     assert res["verdict"] == "effect_found"
@@ -265,9 +270,11 @@ def test_three_effects_at_once_are_all_named_and_no_fourth(runs):
         assert e["coefficient"] == pytest.approx(truth["effects"][e["name"]], rel=0.35)
 
 
-@pytest.mark.xfail(reason="REGRESSION on the 0.8 s record (pytest -n 2, 23 Nov): tip_mass 0.0057 "
-                          "(true 0.01) beside the stiffness; the full config's 1 s record gives "
-                          "0.0097 and stiffness_scale 0.29 (discovery.csv)", strict=False)
+@pytest.mark.xfail(reason="0.8 s record (disc3, 23 Nov): tip_mass 0.0059 (true 0.01) and "
+                          "nonlinear_stiffness instead of stiffness_scale, which fits better (delta BIC "
+                          "222.7 on entry, 120.3 as a replacement) but fails the sign test (joint cut-moment "
+                          "regression); the full config's 1 s record gives tip_mass 0.0097 and "
+                          "stiffness_scale 0.29", strict=False)
 def test_three_effects_name_no_fourth_and_the_stiffness(runs):
     """The part of the three-effect case that the joint fit fixed: the stiffer rod is named
     beside the tip mass (it was absorbed into a halved tip mass before) and nothing else."""
@@ -278,9 +285,10 @@ def test_three_effects_name_no_fourth_and_the_stiffness(runs):
     assert named["stiffness_scale"] == pytest.approx(truth["effects"]["stiffness_scale"], rel=0.35)
 
 
-@pytest.mark.xfail(reason="full config (discovery2, 22 Nov): only tip_mass named; with it the "
-                          "model is at the floor (0.0376 vs 0.0381 rad) whose discretisation part "
-                          "(0.034 rad, from the undamped model) is too high, and the loop stops",
+@pytest.mark.xfail(reason="only tip_mass named (disc3, 23 Nov; 0.8 s: 0.0097, full config: 0.0095): "
+                          "with it the model is at its floor and the cut-moment residual shows no drag "
+                          "(full config: viscous_drag BIC gain -1.9), so the hidden-effect continuation "
+                          "tries only stiffness candidates (rejected, delta BIC -2.7 and -3.2)",
                    strict=False)
 def test_two_effects_are_named_without_a_proxy(runs):
     """A tip mass with drag: both named, and no effect that stood in for them early stays

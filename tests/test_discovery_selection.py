@@ -6,6 +6,7 @@ these tests pin each one down on data whose answer is known exactly.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +17,13 @@ from crgpr.config import load_config
 from crgpr.discovery.residual import Residual
 from crgpr.discovery.selection import (
     DiscoverySettings,
+    Fit,
     TrajectoryFit,
+    alternatives,
     eliminate,
+    entry_threshold,
     local_stiffness_error,
+    swap,
     time_windows,
     trajectory_delta_bic,
 )
@@ -147,3 +152,69 @@ def test_time_windows_cover_the_record_without_a_one_sample_window(T, w):
     assert np.all(masks.sum(axis=0) == 1)  # every sample in exactly one window
     assert min(m.sum() for m in masks) >= 0.5 * w / 0.004  # none degenerate (the last included)
     assert wins[0][0] == 0.0 and wins[-1][1] == pytest.approx(t[-1])
+
+
+# --------------------------------------------------------------------------------------------
+# replacement step (a named effect swapped for a correlated one of the same place)
+# --------------------------------------------------------------------------------------------
+class _StubRegression:
+    """Joint cut-moment regression whose coefficients are all positive (signs agree)."""
+
+    def fit(self, names):
+        return Fit(list(names), np.full(len(names), 0.5), np.full(len(names), 0.1), 0.0, 0.0)
+
+
+class _DragFitter(_StubFitter):
+    """The data hold tip_mass and viscous_drag; air_drag stands in for the viscous drag with
+    a worse fit, internal_damping (also dissipative) helps less than either."""
+
+    def _rss(self, names: list[str]) -> float:
+        rss = 1.0 + (0.0 if "tip_mass" in names else 1.0)
+        drag = {"viscous_drag": 0.0, "air_drag": 0.1, "internal_damping": 0.5}
+        rss += min([drag[k] for k in names if k in drag], default=0.8)
+        return rss
+
+
+def test_swap_replaces_a_drag_that_entered_in_place_of_the_true_one(st):
+    f = _DragFitter()
+    cur = f.fit(["tip_mass", "air_drag"], None, None, 0)
+    out, records = swap(f, cur, _StubRegression(), set(), size_min=0.005, st=st)
+    assert out.names == ["tip_mass", "viscous_drag"]
+    tried = {(r["out"], r["in"]) for r in records}
+    # only effects of the same place are offered: the drag among the R terms, the tip mass
+    # (H, G u) has no partner; the replaced air_drag is not offered back
+    assert ("air_drag", "viscous_drag") in tried and ("air_drag", "internal_damping") in tried
+    assert not any(r["out"] == "tip_mass" for r in records)
+    assert not any(r["in"] == "air_drag" for r in records)
+    assert [r["in"] for r in records if r["swapped"]] == ["viscous_drag"]
+
+
+def test_swap_keeps_the_right_model(st):
+    f = _DragFitter()
+    cur = f.fit(["tip_mass", "viscous_drag"], None, None, 0)
+    out, records = swap(f, cur, _StubRegression(), set(), size_min=0.005, st=st)
+    assert out is cur and not any(r["swapped"] for r in records)
+    assert all(r["trajectory_delta_bic"] < 0 for r in records)
+
+
+def test_entry_threshold_when_the_initial_state_hides_the_gap(st):
+    """A model within min_gap_rad of its floor (the fitted initial state absorbed what the
+    effect did) admits only effects that alone would have put it over that threshold; a clear
+    gap admits effects of min_effect_fraction of it."""
+    hidden, size = entry_threshold(0.018, 0.012, 0.018, st)
+    assert hidden and size == pytest.approx(math.hypot(0.012, st.min_gap_rad))
+    hidden, size = entry_threshold(0.20, 0.012, 0.25, st)
+    assert not hidden and size == pytest.approx(st.min_effect_fraction * 0.25)
+
+
+def test_alternatives_are_swaps_the_data_do_not_tell_apart(st):
+    """A replacement within bic_min_improvement of the named model that passes the entry tests
+    is reported; a clearly worse one, a failed sign test or one tried in another model is not."""
+    rec = {"out": "air_drag", "in": "viscous_drag", "model": ["tip_mass", "air_drag"], "rmse": 0.0134,
+           "trajectory_delta_bic": -9.6, "effect_size_rad": 0.15, "signs_agree": True, "swapped": False}
+    worse = {**rec, "in": "internal_damping", "trajectory_delta_bic": -55.0}
+    sign = {**rec, "signs_agree": False}
+    other = {**rec, "model": ["air_drag"]}
+    out = alternatives([rec, worse, sign, other], ["tip_mass", "air_drag"], 0.01, st)
+    assert [(a["named"], a["alternative"]) for a in out] == [("air_drag", "viscous_drag")]
+    assert alternatives([rec], [], 0.01, st) == []  # nothing named: no alternatives

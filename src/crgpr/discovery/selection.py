@@ -29,12 +29,19 @@ the model's grid (``crgpr.discovery.kinematics``) and the nominal model of confi
    ``min_effect_fraction`` of the gap; and the same sign of its coefficient in the joint
    residual regression and in the trajectory fit). After each entry the other named effects
    are tested again in the joint model (backward elimination with the same BIC and size
-   tests): an effect that entered as a proxy leaves.
-4. Verdict. ``none`` if the gap's excess over the floor is below ``min_gap_rad``;
-   ``effect_found`` if the named effects close at least ``min_explained`` of the gap AND leave
-   no excess over the floor above ``max(min_gap_rad, max_remaining * excess)``; otherwise
-   ``unexplained`` (no name is forced: a global effect that absorbs part of a disturbance it
-   does not describe is reported as a partial attempt, with where the disturbance sits).
+   tests): an effect that entered as a proxy leaves. At the end each named effect is tried
+   replaced by the candidates of its own place in the structure (``swap``): an effect that
+   entered in place of a correlated one while the model was incomplete is exchanged.
+   A model within ``min_gap_rad`` of its floor is "hidden" (``entry_threshold``): its fitted
+   initial state may mimic an effect on a short record, so the search goes on with the
+   candidates the initial-state-free cut-moment residual shows, each of which must be large
+   enough to have put the gap over the "none" threshold by itself.
+4. Verdict. ``effect_found`` if effects were named that close at least ``min_explained`` of
+   the gap (of its excess over the floor when the nominal gap was hidden) AND leave no excess
+   over the floor above ``max(min_gap_rad, max_remaining * excess)``; else ``none`` if the
+   nominal gap's excess over the floor is below ``min_gap_rad``; otherwise ``unexplained``
+   (no name is forced: a global effect that absorbs part of a disturbance it does not
+   describe is reported as a partial attempt, with where the disturbance sits).
 """
 
 from __future__ import annotations
@@ -640,6 +647,23 @@ def trajectory_delta_bic(small: TrajectoryFit, big: TrajectoryFit) -> float:
     return n_eff * math.log(max(small.rss, 1e-300) / max(big.rss, 1e-300)) - dp * math.log(n_eff)
 
 
+def entry_threshold(rmse: float, floor: float, gap_before: float, st: DiscoverySettings
+                    ) -> tuple[bool, float]:
+    """(hidden, least effect size [rad]) for a candidate entering a model with theta RMSE
+    ``rmse`` and floor ``floor``.
+
+    ``hidden``: the model, with its own fitted initial state, is within ``min_gap_rad`` of its
+    floor. On a short record the initial state mimics much of an effect (0.8 s of viscous drag:
+    0.099 rad from the true release, 0.018 rad from the fitted initial state), so a small gap
+    does not show that nothing is missing; the cut-moment residual, which needs no initial
+    state, still does. A hidden effect must be large enough that it alone would have put the
+    gap over the "none" threshold: its own size (with vs without it, same initial state)
+    >= hypot(floor, min_gap_rad). Otherwise an effect's size must be >= min_effect_fraction of
+    the nominal gap ``gap_before``."""
+    hidden = math.sqrt(max(rmse**2 - floor**2, 0.0)) <= st.min_gap_rad
+    return hidden, (math.hypot(floor, st.min_gap_rad) if hidden else st.min_effect_fraction * gap_before)
+
+
 def eliminate(fitter: TrajectoryFitter, cur: TrajectoryFit, keep: str, gap_before: float,
               st: DiscoverySettings) -> tuple[TrajectoryFit, list[dict[str, Any]]]:
     """Backward elimination after a candidate entered (nested-model test on the joint fit).
@@ -676,6 +700,74 @@ def eliminate(fitter: TrajectoryFitter, cur: TrajectoryFit, keep: str, gap_befor
         worst[2]["dropped"] = True
         cur = worst[1]
     return cur, records
+
+
+def swap(fitter: TrajectoryFitter, cur: TrajectoryFit, reg0: Regression, excluded: set[str],
+         size_min: float, st: DiscoverySettings) -> tuple[TrajectoryFit, list[dict[str, Any]]]:
+    """Replacement step of stepwise selection (Miller, Subset Selection in Regression, 2002,
+    Sec. 3.5): each named effect is tried replaced by every candidate of the same place in the
+    structure (``Effect.place``: the dissipative R terms among themselves, the H terms among
+    themselves), all coefficients and the initial state refitted. Forward selection fixes the
+    order of entry while the model is still incomplete: three_effects' drag entered as air_drag
+    beside a tip mass at half its value, when viscous_drag's linearised score was lower; once
+    the stiffness and the tip mass are named, the right drag fits better. The best replacement
+    that lowers the trajectory BIC by ``bic_min_improvement`` (same number of parameters: the
+    RSS ratio alone) and passes the entry tests (own size >= ``size_min``, the same sign in the
+    joint residual regression) is made, and the search repeated; an effect replaced is not
+    offered again."""
+    records: list[dict[str, Any]] = []
+    gone = set(excluded)
+    fitted: dict[frozenset[str], tuple[TrajectoryFit, float, float]] = {}  # a model is fitted once
+    while True:
+        best = None
+        for i, k in enumerate(cur.names):
+            for j in EFFECT_NAMES:
+                if j in cur.names or j in gone or EFFECTS[j].place != EFFECTS[k].place:
+                    continue
+                names = cur.names[:i] + [j] + cur.names[i + 1:]
+                if frozenset(names) not in fitted:
+                    jr = reg0.fit(names)  # initial-state-free start for the newcomer
+                    c_j = float(jr.coef[i])
+                    if c_j == 0.0 and EFFECTS[j].reg_lo == 0.0:
+                        c_j = max(float(jr.std[i]), 1e-6)
+                    x0 = cur.coef.copy()
+                    x0[i] = c_j
+                    xs = cur.std.copy()
+                    xs[i] = float(jr.std[i])
+                    cand = fitter.fit(names, x0, xs, st.refine_max_nfev)
+                    fitted[frozenset(names)] = (cand, fitter.effect_size(cand, j), float(jr.coef[i]))
+                cand, size, c_reg = fitted[frozenset(names)]
+                i_c = cand.names.index(j)
+                dbic = trajectory_delta_bic(cur, cand)
+                agrees = c_reg * float(cand.coef[i_c]) > 0.0
+                ok = dbic >= st.bic_min_improvement and size >= size_min and agrees
+                records.append({"out": k, "in": j, "model": list(cur.names), "rmse": cand.rmse,
+                                "trajectory_delta_bic": dbic, "effect_size_rad": size,
+                                "joint_residual_coefficient": c_reg,
+                                "trajectory_coefficient": float(cand.coef[i_c]), "signs_agree": agrees,
+                                "swapped": False})
+                log.info("swap %s -> %s in %s: RMSE %.4f, delta BIC %.1f, size %.4f, acceptable %s", k, j,
+                         cur.names, cand.rmse, dbic, size, ok)
+                if ok and (best is None or cand.rss < best[0].rss):
+                    best = (cand, records[-1], k)
+        if best is None:
+            return cur, records
+        best[1]["swapped"] = True
+        gone.add(best[2])
+        cur = best[0]
+
+
+def alternatives(swaps: list[dict[str, Any]], names: list[str], size_min: float, st: DiscoverySettings
+                 ) -> list[dict[str, Any]]:
+    """Replacements (``swap`` records) that the data do not tell apart from the named model
+    ``names``: tried in that model, passing the entry tests (own size >= ``size_min``, signs
+    agree) with |delta BIC| < ``bic_min_improvement``. Reported beside the named effects, not
+    instead of them (three_effects, full config: viscous_drag for air_drag at RMSE 0.0134 vs
+    0.0128 rad, delta BIC -9.6, both below the floor 0.0226)."""
+    return [{"named": w["out"], "alternative": w["in"], "trajectory_delta_bic": w["trajectory_delta_bic"],
+             "rmse": w["rmse"]} for w in swaps
+            if names and w["model"] == list(names) and not w["swapped"] and w["signs_agree"]
+            and abs(w["trajectory_delta_bic"]) < st.bic_min_improvement and w["effect_size_rad"] >= size_min]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -722,6 +814,7 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
             floors[key] = math.hypot(f_noise, disc)
         return floors[key]
     excess = math.sqrt(max(gap_before**2 - floor**2, 0.0))
+    hidden_nominal = excess <= st.min_gap_rad
     trim = max(1, int(round(st.edge_trim_s / period)))
     rows = slice(trim, n - trim)
     theta_b0 = float(kin.q[0, 0, 2])
@@ -755,25 +848,29 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
                 "residual_bic_gain": {k: g for g, k, _ in ranked}, "coefficients": {
                     k: float(f.coef[0]) for _, k, f in ranked}, "confirmation": []}
         steps.append(step)
-        if excess <= st.min_gap_rad:
+        # a model at its floor (hidden: the fitted initial state may mimic an effect) tries only
+        # the candidates the initial-state-free cut-moment residual shows (BIC gain >=
+        # bic_min_improvement), the best max_confirm by trajectory score
+        hidden, size_min = entry_threshold(cur.rmse, floor_of(cur) if cur.names else floor, gap_before, st)
+        step["hidden_by_initial_state"] = hidden
+        pool = [r for r in ranked if r[0] >= st.bic_min_improvement] if hidden else ranked
+        if not pool:
             break
-        # the augmented model already leaves no excess over the floor: nothing left to name
-        if cur.names and math.sqrt(max(cur.rmse**2 - floor_of(cur) ** 2, 0.0)) <= st.min_gap_rad:
-            break
+        step["min_effect_size_rad"] = size_min
         added = False
         # order: the candidates the residual shows (BIC gain >= bic_min_improvement) ranked
         # together with all others by their linearised trajectory evidence (the residual of
         # noisy accelerations can misrank correlated stiffness candidates); the first
         # max_confirm are confirmed by full trajectory fits, the rest only if none holds up
-        scores = {k: fitter.score(cur, k) for _, k, _ in ranked}
+        scores = {k: fitter.score(cur, k) for _, k, _ in pool}
         step["trajectory_score"] = scores
-        order = sorted(ranked, key=lambda r: -scores[r[1]])
+        order = sorted(pool, key=lambda r: -scores[r[1]])
         screened = order[:st.max_confirm]
         # all others are fitted if the screened ones fail: the linearised score is local (a
         # frequency-changing effect's response is far from linear once the phase error is
         # large: on the mid-motion camera record tip_mass scored 0, pointing out of range,
-        # and was the effect)
-        rest = order[st.max_confirm:]
+        # and was the effect); not when hidden (the gap is small, the linearisation holds)
+        rest = [] if hidden else order[st.max_confirm:]
         for group in (screened, rest):
             best = None
             for gain, k, f in group:
@@ -792,7 +889,7 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
                 # practical significance: the effect's own size in the joint fit (its marginal
                 # RMSE decrease understates it when candidates are correlated)
                 size = fitter.effect_size(cand, k)
-                closes = size >= st.min_effect_fraction * gap_before
+                closes = size >= size_min
                 # the two independent estimates of the same joint model must agree in sign:
                 # a candidate whose cut-moment regression coefficient (all named effects
                 # regressed jointly on the nominal residual) is opposite, or at its bound,
@@ -823,6 +920,12 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
             accepted.append(cur)
         if not added or len(cur.names) >= st.max_effects:
             break
+    swaps: list[dict[str, Any]] = []
+    size_min_final = entry_threshold(gap_before, floor, gap_before, st)[1]
+    if accepted:
+        cur, swaps = swap(fitter, cur, reg0, dropped, size_min_final, st)
+        if cur is not accepted[-1]:
+            accepted.append(cur)
     result: dict[str, Any] = {
         "measured": meas.source, "input": meas.summary(), "n_samples": n,
         "n_markers_compared": int(M.shape[0]), "model_N": params.N,
@@ -830,13 +933,14 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         "gap_before": gap_before, "tip_gap_before": tip_before, "gap_floor": floor,
         "gap_floor_noise": f_noise, "gap_floor_discretisation": f_disc,
         "gap_excess_over_floor": excess,
+        "hidden_by_initial_state": hidden_nominal,
         "initial_state_fit": {"modes": st.init_modes, "nominal_corrections": nominal.init.tolist()},
         "selection": {"criterion": "forward stepwise BIC on the port-Hamiltonian residual "
                                    "(heteroscedastic, autocorrelation-deflated), each step confirmed "
                                    "by the trajectory fit's BIC",
                       "bic_min_improvement": st.bic_min_improvement,
                       "tau_time": reg0.tau_t, "tau_s": reg0.tau_s, "tau_base": reg0.tau_b,
-                      "n_eff": reg0.n_eff, "steps": steps},
+                      "n_eff": reg0.n_eff, "steps": steps, "swaps": swaps},
     }
     effects: list[dict[str, Any]] = []
     best_attempt = None
@@ -862,14 +966,19 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
             })
         frac = 1.0 - fit.rmse / gap_before
         remaining = math.sqrt(max(fit.rmse**2 - floor_of(fit) ** 2, 0.0))
+        excess_frac = 1.0 - remaining / excess if excess > 0 else (1.0 if remaining == 0.0 else 0.0)
         best_attempt = {"effects": attempt, "gap_after": fit.rmse, "explained_fraction": frac,
+                        "explained_excess_fraction": excess_frac,
                         "remaining_excess": remaining, "gap_floor": floor_of(fit)}
-        if frac >= st.min_explained and remaining <= max(st.min_gap_rad, st.max_remaining * excess):
+        # an effect hidden by the initial state (nominal gap within min_gap_rad of the floor)
+        # cannot close half of a gap that is mostly floor: there it must close half the excess
+        closes = excess_frac >= st.min_explained if hidden_nominal else frac >= st.min_explained
+        if closes and remaining <= max(st.min_gap_rad, st.max_remaining * excess):
             effects, q_aug = attempt, fit.q
-    if excess <= st.min_gap_rad:
-        verdict = "none"
-    elif effects:
+    if effects:
         verdict = "effect_found"
+    elif hidden_nominal:
+        verdict = "none"
     else:
         verdict = "unexplained"
     gap_after = theta_rmse(q_aug, kin.q, M)
@@ -881,6 +990,8 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         "explained_excess_fraction": (1.0 - math.sqrt(max(gap_after**2 - floor**2, 0.0)) / excess
                                       if excess > 0 else 0.0),
         "where": where, "best_attempt": best_attempt,
+        "indistinguishable_alternatives": alternatives(swaps, [e["name"] for e in effects], size_min_final,
+                                                       st),
         "significant_but_below_tolerance": [k for k, g in steps[0]["residual_bic_gain"].items()
                                             if g >= st.bic_min_improvement] if verdict == "none" else [],
         "timing_s": {"gp_smoothing": t_smooth, "total": time.perf_counter() - t_start},

@@ -112,6 +112,9 @@ def report_markdown(result: dict[str, Any], files: list[str]) -> str:
                 f"{e['regression_coefficient']:.4g} +- {e['regression_std']:.2g}"
             lines.append(f"| {i} | {e['name']} | {e['coefficient']:.4g} | {e['coefficient_std']:.2g} | "
                          f"{e['unit']} | {rc} | {e['place']} |")
+        for a in result.get("indistinguishable_alternatives", []):
+            lines.append(f"\nNot told apart by these data: {a['alternative']} instead of {a['named']} "
+                         f"(RMSE {a['rmse']:.4f} rad, trajectory delta BIC {a['trajectory_delta_bic']:.1f}).")
     else:
         lines.append("None added.")
         if result["best_attempt"]:
