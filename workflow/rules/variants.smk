@@ -65,14 +65,13 @@ use rule gradient_model as variant_gradient_model with:
 # rule rollout itself (a diverged rollout is written frozen and scored, as in the main run)
 rule variant_rollout:
     input:
-        code=code_closure("rollout.py"),
+        code=code_closure("variant_rollout.py"),
         models=lambda wc: v_model_files(wc.variant, wc.method),
     output:
         traj=f"{VROOT}/{{variant}}/rollouts/{{method}}/{{angle}}.parquet",
         energy=f"{VROOT}/{{variant}}/rollouts/{{method}}/{{angle}}_energy.parquet",
     params:
         cfg=variant_params(rules.rollout),
-        angles=lambda wc: [int(wc.angle)],
     wildcard_constraints:
         variant=_VARIANT_RE,
         method="|".join(CRGPR_METHODS),
@@ -88,7 +87,7 @@ rule variant_rollout:
     conda:
         ENV
     script:
-        "../scripts/rollout.py"
+        "../scripts/variant_rollout.py"
 
 
 rule variant_metrics:

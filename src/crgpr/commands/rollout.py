@@ -21,6 +21,13 @@ def rollout(cfg: dict[str, Any], method: str, angles: list[int], outs: list[str]
     learned.run_rollouts(cfg, method, [float(a) for a in angles], Path(model_json).parent, outs, energy_outs)
 
 
+def variant_rollout(cfg: dict[str, Any], method: str, angle: int, out: str, energy_out: str,
+                    model_json: str) -> None:
+    """Rule ``variant_rollout``: one method of a pipeline variant at one angle (the same
+    ``learned.run_rollouts``; a variant's test angles come from its own config)."""
+    learned.run_rollouts(cfg, method, [float(angle)], Path(model_json).parent, [out], [energy_out])
+
+
 def add_cli(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("rollout", help="step 4: simulate a learned CR-GPR model",
                        description="Integrate dz/dt = (J - R) H_z_hat + G u (eq. (17)) from the "
