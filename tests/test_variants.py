@@ -221,7 +221,9 @@ def test_changing_one_variant_reruns_only_that_variant(variant_run):
     cfg = _smoke_variants(tmp / "main", DEFS, ["paper", "no_wrap"], gradient_models={"n_hyper": 120})
     jobs = _dry(repo, work, cfg, target)
     assert len(jobs["gradient_model"]) == 6 and len(jobs["variant_gradient_model"]) == 6, jobs
-    assert len(jobs["rollout"]) == len(jobs["variant_rollout"]) == 2 and len(jobs["variant_metrics"]) == 2
+    # the main rollout: one job for both test angles; a variant's: one job per angle
+    assert len(jobs["rollout"]) == 1 and len(jobs["variant_rollout"]) == 2
+    assert len(jobs["variant_metrics"]) == 2
     assert not {"ground_truth", "prefilter", "variant_ground_truth", "variant_prefilter"} & set(jobs)
 
 
