@@ -209,9 +209,10 @@ _CG_RTOL = 1e-13
 _CG_MAXITER = 60
 
 
-def _pivoted_rank(Ul: np.ndarray, kernel_id: int, sf2: float, trace_tol: float, rmax: int) -> int | None:
-    """Pivots a pivoted Cholesky of k(Ul, Ul) needs for a residual trace below trace_tol, or None
-    if more than rmax (the rank test of ``_lowrank_solve``)."""
+def _pivoted_factor(Ul: np.ndarray, kernel_id: int, sf2: float, trace_tol: float, rmax: int
+                    ) -> np.ndarray | None:
+    """Pivoted Cholesky k(Ul, Ul) ~ L L^T, kernel columns computed on demand, until the residual
+    trace is below trace_tol; L (n, r), or None if that needs more than rmax pivots."""
     n = Ul.shape[0]
     dg = np.full(n, sf2)
     L = np.zeros((n, min(n, rmax)))
@@ -227,7 +228,7 @@ def _pivoted_rank(Ul: np.ndarray, kernel_id: int, sf2: float, trace_tol: float, 
         dg = np.maximum(dg - v * v, 0.0)
         dg[i] = 0.0
         r += 1
-    return r
+    return L[:, :r]
 
 
 def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B: np.ndarray
@@ -249,25 +250,13 @@ def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B:
     n_sub = min(n, 4 * _LOWRANK_MAX_RANK)
     if n_sub < n:
         sub = np.random.default_rng(0).choice(n, size=n_sub, replace=False)
-        if _pivoted_rank(np.ascontiguousarray(Ul[sub]), kernel_id, sf2, _LOWRANK_TRACE * noise2 * n_sub / n,
-                         _LOWRANK_MAX_RANK // 2) is None:
+        if _pivoted_factor(np.ascontiguousarray(Ul[sub]), kernel_id, sf2, _LOWRANK_TRACE * noise2 * n_sub / n,
+                           _LOWRANK_MAX_RANK // 2) is None:
             return None
-    dg = np.full(n, sf2)
-    rmax = min(n, _LOWRANK_MAX_RANK)
-    L = np.zeros((n, rmax))
-    col = np.empty(n)
-    r = 0
-    while dg.sum() > _LOWRANK_TRACE * noise2:
-        if r == rmax:
-            return None
-        i = int(np.argmax(dg))
-        _kernel_column(Ul, i, kernel_id, sf2, col)
-        v = (col - L[:, :r] @ L[i, :r]) / math.sqrt(dg[i])
-        L[:, r] = v
-        dg = np.maximum(dg - v * v, 0.0)
-        dg[i] = 0.0
-        r += 1
-    L = L[:, :r]
+    L = _pivoted_factor(Ul, kernel_id, sf2, _LOWRANK_TRACE * noise2, _LOWRANK_MAX_RANK)
+    if L is None:
+        return None
+    r = L.shape[1]
     C = sla.cho_factor(noise2 * np.eye(r) + L.T @ L, lower=True)
 
     def precond(R: np.ndarray) -> np.ndarray:
