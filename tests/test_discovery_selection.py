@@ -218,3 +218,38 @@ def test_alternatives_are_swaps_the_data_do_not_tell_apart(st):
     out = alternatives([rec, worse, sign, other], ["tip_mass", "air_drag"], 0.01, st)
     assert [(a["named"], a["alternative"]) for a in out] == [("air_drag", "viscous_drag")]
     assert alternatives([rec], [], 0.01, st) == []  # nothing named: no alternatives
+
+
+def test_trajectory_fit_jacobian_is_the_derivative_of_its_residual():
+    """The fitter's Jacobian: initial-state columns from the tangent-linear run (exact),
+    coefficient columns by least_squares' own forward differences; both match central
+    differences of the theta residual at the markers, and its residual is the fit's own."""
+    from crgpr.discovery.kinematics import Kinematics
+    from crgpr.discovery.selection import TrajectoryFitter, rod_state, run_model
+
+    pr = paper_rod(N=10)
+    n, period = 41, 0.005
+    th = np.radians(85.0) - 0.3 * (pr.s / pr.L0) ** 2
+    om = 2.0 * pr.s / pr.L0
+    q0, v0 = rod_state(th, om, np.zeros(2), pr)
+    q = run_model(pr.replace(tip_mass=0.005), q0, v0, period, n, 1e-4)
+    t = np.arange(n) * period
+    vq = np.gradient(q, t, axis=0)
+    kin = Kinematics(t, q, vq, np.gradient(vq, t, axis=0), 1e-3, q[:, 0, 2].copy(),
+                     np.array([0.1, 0.2, 0.3, 0.4, 0.5]) * pr.L0)
+    fitter = TrajectoryFitter(pr, kin, 1e-4, n_modes=2, window_s=0.05)
+    names = ["tip_mass", "viscous_drag"]
+    x = np.array([0.003, 0.02, 0.01, -0.02, 0.05, 0.03])
+    lo, hi = np.zeros(2), np.full(2, np.inf)
+    assert fitter._init_jacobian(names, x[:2], x[2:], n) is not None  # the tangent path, not the fallback
+    J = fitter._jacobian(names, x, 2, (lo, hi), n, 1e-4)
+    r0 = fitter._resid(names, x[:2], x[2:], n)
+    assert J.shape == (r0.size, 6)
+    for i in range(6):
+        h = 1e-6 * max(abs(x[i]), 1e-2)
+        e = np.zeros(6)
+        e[i] = h
+        fd = (fitter._resid(names, (x + e)[:2], (x + e)[2:], n)
+              - fitter._resid(names, (x - e)[:2], (x - e)[2:], n)) / (2 * h)
+        tol = 1e-3 if i < 2 else 1e-6  # forward differences (rel. step 1e-4) vs exact
+        assert np.abs(J[:, i] - fd).max() <= tol * np.abs(fd).max(), i
