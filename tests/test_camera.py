@@ -75,11 +75,9 @@ def test_gp_noise_level_is_estimated_from_the_data(sim):
 
 
 @pytest.fixture(scope="module")
-def smoke_models(tmp_path_factory):
+def smoke_models(tmp_path_factory, smoke_training_run):
     """Smoke-sized models learned from the full state and from positions only (noise-free)."""
-    cfg = load_config(SMOKE)
-    P = rod_params(cfg)
-    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
+    cfg, tr = smoke_training_run
     d = tmp_path_factory.mktemp("learn")
     full = trajectory_frame(tr).drop(columns=["theta0_deg", "s"])
     write_parquet(full, d / "full.parquet")

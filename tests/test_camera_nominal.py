@@ -90,11 +90,9 @@ def test_schema_rejects_an_unknown_nominal_law():
 
 
 @pytest.fixture(scope="module")
-def noisy_models(tmp_path_factory):
+def noisy_models(tmp_path_factory, smoke_training_run):
     """Smoke-sized grey-box (auto) and fully learned models from 1 mm camera positions."""
-    cfg = load_config(SMOKE)
-    P = rod_params(cfg)
-    tr = simulate(85.0, P, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
+    cfg, tr = smoke_training_run
     d = tmp_path_factory.mktemp("grey")
     df = camera_frame(tr.t, tr.q, 1e-3, np.random.default_rng(5))
     write_parquet(df, d / "cam.parquet")

@@ -108,3 +108,25 @@ def test_full_rank_kernels_fall_back_to_the_dense_factorisation():
     rng = np.random.default_rng(6)
     Ul = rng.uniform(-20, 20, (800, 3))
     assert ev._lowrank_solve(Ul, 0, 1.0, 1e-4, np.ones((800, 1))) is None
+
+
+def test_noise_at_round_off_falls_back_to_the_dense_factorisation():
+    """sigma_n^2 / sigma_f^2 at 1e-12 on a low-rank kernel (a momentum GP with a tiny noise
+    floor): the factor's residual trace is below what double precision resolves and CG breaks
+    down (before the guard: a ValueError on non-finite iterates); the low-rank path declines
+    (None) and exact_weights gives the dense Cholesky mean."""
+    import crgpr.gp.evaluators as ev
+
+    rng = np.random.default_rng(7)
+    n = 3000
+    X = np.sort(rng.uniform(0.0, 1.0, n))[:, None]
+    y = np.sin(3.0 * X[:, 0])
+    gp = fit_gp(X, y, kernel="se", basis="constant", ard=True, n_restarts=0, seed=1, factorise=False,
+                fixed={"sigma_f": 1.0, "lengthscales": np.full(1, 2.0), "sigma_n": 1e-6})
+    Ul = np.ascontiguousarray(gp.Xs / gp.ell)
+    B = np.column_stack([gp.y, ev.basis_matrix_std(gp.basis, gp.Xs)])
+    assert ev._lowrank_solve(Ul, 0, gp.sigma_f**2, gp.sigma_n**2, B) is None
+    Xs = rng.uniform(0.0, 1.0, (100, 1))
+    ref = _dense_mean(gp, Xs)
+    got = KernelMean.exact(gp, tol=0.0, weights=exact_weights(gp))(Xs)
+    assert np.max(np.abs(got - ref)) <= 1e-8 * np.max(np.abs(ref))

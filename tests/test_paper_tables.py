@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from crgpr.report.paper import FAILS, HOLDS, MATCH, OUTSIDE, build, in_band, load_values
+from crgpr.report.paper import FAILS, HOLDS, MATCH, OUTSIDE, build, build_sweep_claims, in_band, load_values
 
 ROOT = Path(__file__).resolve().parents[1]
 RES = ROOT / "results"
@@ -98,3 +98,12 @@ def test_noise_claims_belong_to_the_sweeps_target(tmp_path):
     _, ct = build(str(VALUES), None, None, None, None, *out, noise=str(tmp_path / "noise.csv"))
     verdicts = ct.set_index("id")["verdict"]
     assert noise_ids <= set(verdicts.index) and set(verdicts[list(noise_ids)]) == {HOLDS}
+    # rule paper_claims_sweeps: exactly the noise claims, the same verdicts
+    sw = build_sweep_claims(str(VALUES), str(tmp_path / "noise.csv"), str(tmp_path / "s.csv"))
+    assert set(sw["id"]) == noise_ids and set(sw["verdict"]) == {HOLDS}
+    assert pd.read_csv(tmp_path / "s.csv")["id"].tolist() == sw["id"].tolist()
+    # FD no worse than the GP prefilter at 2 mm: the claims do not hold
+    rows = [dict(r, rmse_theta_mean_finite=0.1) for r in rows]
+    pd.DataFrame(rows).to_csv(tmp_path / "noise.csv", index=False)
+    sw = build_sweep_claims(str(VALUES), str(tmp_path / "noise.csv"), str(tmp_path / "s.csv"))
+    assert set(sw["verdict"]) == {FAILS}

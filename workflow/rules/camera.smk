@@ -14,7 +14,7 @@ ROLLOUT_METHODS.append(CAM_METHOD)
 _CAM_CELLS = [(f"{n:g}", p, f) for n in CAM_ABL["noise_mm"] for p in CAM_ABL["prefilters"]
               for f in CAM_ABL["features"]]
 # the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn);
-# the ablation cells train on fewer frames and points (camera.ablation.n_t_out, n_train_max) and
+# the ablation cells train on fewer frames and points (camera.ablation.n_t_out, n_train_max, n_hyper_max) and
 # take their grey-box choice from camera.ablation.nominal_laws (one model class for every noise level)
 _LEARN_CFG = {
     "main": {"seed": config["seed"], "rod": config["rod"],
@@ -25,6 +25,7 @@ _LEARN_CFG = {
 _LEARN_CFG["ablation"] = copy.deepcopy(_LEARN_CFG["main"])
 _LEARN_CFG["ablation"]["camera"]["learn"]["n_t_out"] = CAM_ABL["n_t_out"]
 _LEARN_CFG["ablation"]["camera"]["learn"]["nominal_laws"] = CAM_ABL["nominal_laws"]
+_LEARN_CFG["ablation"]["gradient_models"]["n_hyper"] = min(config["gradient_models"]["n_hyper"], CAM_ABL["n_hyper_max"])
 for _group in ("models", "objective_models"):
     for _spec in _LEARN_CFG["ablation"]["gradient_models"][_group].values():
         _spec["n_train"] = min(_spec["n_train"], CAM_ABL["n_train_max"])

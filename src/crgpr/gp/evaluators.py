@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -239,7 +240,9 @@ def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B:
     ``_LOWRANK_TRACE`` noise2 (then P = L L^T + noise2 I differs from K + noise2 I by a PSD E with
     ||E|| <= 1e-3 noise2: cond(P^-1 A) <= 1.001); preconditioned CG on every column of B (one
     matrix-free kernel pass per iteration) to relative residual ``_CG_RTOL``. None when the rank
-    exceeds ``_LOWRANK_MAX_RANK`` or CG does not converge (the caller factorises densely)."""
+    exceeds ``_LOWRANK_MAX_RANK`` or CG does not converge or breaks down (non-finite iterates:
+    noise2 / sf2 near round-off, where the factor's residual trace is below what double precision
+    resolves); the caller then factorises densely."""
     import scipy.linalg as sla
 
     n = Ul.shape[0]
@@ -263,10 +266,20 @@ def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B:
         return (R - L @ sla.cho_solve(C, L.T @ R)) / noise2
 
     B = np.asarray(B, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):  # a breakdown is detected and declined
+        return _pcg(Ul, kernel_id, sf2, noise2, B, precond)
+
+
+def _pcg(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B: np.ndarray,
+         precond: Callable[[np.ndarray], np.ndarray]) -> np.ndarray | None:
+    """Preconditioned CG for (K + noise2 I) X = B, column by column in one block (one
+    matrix-free kernel pass per iteration); None on breakdown or no convergence."""
     X = precond(B)
     AX = np.empty_like(B)
     _kernel_matvec(Ul, kernel_id, sf2, noise2, X, AX)
     R = B - AX
+    if not np.all(np.isfinite(R)):
+        return None
     Zp = precond(R)
     P = Zp.copy()
     rz = (R * Zp).sum(0)
@@ -279,6 +292,8 @@ def _lowrank_solve(Ul: np.ndarray, kernel_id: int, sf2: float, noise2: float, B:
         alpha = rz / np.maximum((P * AP).sum(0), 1e-300)
         X += alpha * P
         R -= alpha * AP
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(R))):
+            return None
         Zp = precond(R)
         rz_new = (R * Zp).sum(0)
         P = Zp + (rz_new / np.maximum(rz, 1e-300)) * P
