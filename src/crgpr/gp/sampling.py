@@ -574,6 +574,19 @@ class SparsePosterior:
         var = (G * G).sum(0) + sp.sigma_f**2 - (psi * psi).sum(1)
         return sp.to_output(mean), var * sp.out_scale**2
 
+    def scaled(self, c: float) -> SparsePosterior:
+        """The DTC posterior of ``scaled_spec(spec, c)`` (sigma_f, sigma_n x c) without a new
+        O(n M^2) factorisation: with D = diag(I_p / c, I_M) the stacked system of the scaled GP
+        is the unscaled one times D, so P_c = D P D, RP_c = RP D, L_Z,c = c L_Z and
+        mu_c = diag(I_p, I_M / c) mu (same mean function, covariance x c^2)."""
+        if not c > 0:
+            raise ValueError(f"{self.spec.name}: posterior scale must be > 0, got {c}")
+        p = self.n_basis
+        d = np.concatenate([np.full(p, 1.0 / c), np.ones(self.Z.shape[0])])
+        mu = self.mu.copy()
+        mu[p:] /= c
+        return SparsePosterior(scaled_spec(self.spec, c), self.Z, c * self.LZ, self.RP * d[None, :], mu)
+
     def mean_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
         """(beta_bar, a_bar): the posterior mean as h(u)^T beta_bar + k(u, Z) a_bar."""
         p = self.n_basis
@@ -654,7 +667,22 @@ def scaled_spec(spec: GP, c: float) -> GP:
                                 spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
 
 
-def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median"
+def _posterior_mean_std(post: ExactPosterior | SparsePosterior, xs: np.ndarray) -> np.ndarray:
+    """Posterior mean of f in standardised output units at standardised inputs ``xs`` (m, d):
+    h^T beta_bar + k(x, Z) a_bar (sparse) or h^T beta_bar + k(x, X) alpha (exact), O(m M) /
+    O(m n), without the variance's triangular solves."""
+    sp = post.spec
+    if isinstance(post, SparsePosterior):
+        beta, a = post.mean_coefficients()
+        return sp.basis_fn(xs) @ beta + se_kernel(xs, post.Z, sp.sigma_f, sp.ell) @ a
+    return sp.basis_fn(xs) @ post.beta_bar + se_kernel(xs, sp.Xs, sp.sigma_f, sp.ell) @ post.alpha
+
+
+HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")
+
+
+def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median",
+                        eval_points: int = 2000, full: ExactPosterior | SparsePosterior | None = None
                         ) -> tuple[float, dict[str, Any]]:
     """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
 
@@ -670,18 +698,36 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
     are modelled as r_i ~ N(0, c^2 v_i + s^2), the function's error (the latent posterior, scaled)
     plus the targets' own error s (the prefilter's smoothing error: it is in every target, but
     not in the function the rollout integrates); (c, s) maximise the held-out Gaussian
-    likelihood (``split_noise_scale``) and c is returned. Scaling sigma_f and sigma_n by c
-    (``scaled_spec``) multiplies every posterior variance by c^2 and keeps the mean.
-    Returns (c, diagnostics with the held-out z statistics).
+    likelihood (``split_noise_scale``, computed only for this statistic: it is the costly one)
+    and c is returned.
+
+    'jackknife' (the delete-a-block jackknife, Kuensch 1989): the residuals above compare the
+    mean with the *targets*, so they carry the targets' own error, which a law fitted to many
+    blocks averages out; the jackknife instead measures how much the posterior mean itself moves
+    when one block of data is left out. With m_-b the mean conditioned on all blocks but b, at
+    ``eval_points`` training inputs x (evenly spaced rows),
+        V_jk(x) = (B - 1) / B sum_b (m_-b(x) - mean_b m_-b(x))^2
+    estimates the variance of the full-data mean under errors correlated within blocks and
+    independent between them (for a linear law: the cluster-robust covariance of its
+    coefficients), and c = sqrt(median_x V_jk(x) / v(x)), v the full-data posterior's latent
+    variance (``full``, built here when not given). The median, because where one block alone
+    determines the mean (its states appear nowhere else) the jackknife measures that block's
+    extrapolation, not the estimator's spread (a known failure of the jackknife for local
+    estimators), and those points are outliers of the ratio.
+
+    Scaling sigma_f and sigma_n by c (``scaled_spec``) multiplies every posterior variance by c^2
+    and keeps the mean. Returns (c, diagnostics with the held-out z statistics).
     """
     n = spec.Xs.shape[0]
     if not 2 <= n_blocks <= n // 2:
         raise ValueError(f"{spec.name}: {n_blocks} held-out blocks for n = {n} rows")
     edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    if statistic not in ("rms", "median", "split"):
+    if statistic not in HELDOUT_STATISTICS:
         raise ValueError(f"{spec.name}: held-out statistic {statistic!r}; "
-                         "expected 'rms', 'median' or 'split'")
-    z_all, r_all, v_all = [], [], []
+                         f"expected one of {HELDOUT_STATISTICS}")
+    ev = np.unique(np.linspace(0, n - 1, min(eval_points, n)).round().astype(int))
+    xs_ev = spec.Xs[ev]
+    z_all, r_all, v_all, m_jk = [], [], [], []
     for b in range(n_blocks):
         te = np.arange(edges[b], edges[b + 1])
         tr = np.concatenate([np.arange(0, edges[b]), np.arange(edges[b + 1], n)])
@@ -693,16 +739,32 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
         z_all.append(r / np.sqrt(np.maximum(v, 1e-300)))
         r_all.append(r)
         v_all.append(np.maximum(v, 0.0))
+        m_jk.append(_posterior_mean_std(post, xs_ev) * spec.out_scale)
     z = np.concatenate(z_all)
     c_rms = float(np.sqrt(np.mean(z**2)))
     c_med = float(np.median(np.abs(z)) / 0.6744897501960817)
-    c_split, s_split = split_noise_scale(np.concatenate(r_all), np.concatenate(v_all))
-    c = {"rms": c_rms, "median": c_med, "split": c_split}[statistic]
+    # the split likelihood is the costly statistic (a profile over c, a root in s^2 for each c):
+    # only when asked for
+    c_split, s_split = (split_noise_scale(np.concatenate(r_all), np.concatenate(v_all))
+                        if statistic == "split" else (None, None))
+    if full is None:
+        full = sparse_posterior(spec, Z) if Z is not None else exact_posterior(spec)
+    _, v_ev = full.mean_var(xs_ev * spec.x_std + spec.x_mean)
+    mj = np.asarray(m_jk)
+    v_jk = (n_blocks - 1) / n_blocks * np.sum((mj - mj.mean(0)) ** 2, axis=0)
+    ratio = v_jk / np.maximum(v_ev, 1e-300)
+    c_jk = float(np.sqrt(np.median(ratio)))
+    c = {"rms": c_rms, "median": c_med, "split": c_split, "jackknife": c_jk}[statistic]
     info = {"posterior_scale": c, "heldout_statistic": statistic, "heldout_scale_rms": c_rms,
             "heldout_scale_median": c_med, "heldout_scale_split": c_split,
+            "heldout_scale_jackknife": c_jk,
+            "jackknife_scale_mean": float(np.sqrt(np.mean(ratio))),
+            "jackknife_sd_median": float(np.median(np.sqrt(v_jk))),
+            "jackknife_eval_points": int(ev.size),
             "heldout_target_error_split": s_split,
             "heldout_rms_residual": float(np.sqrt(np.mean(np.concatenate(r_all) ** 2))),
             "heldout_latent_sd_median": float(np.median(np.sqrt(np.concatenate(v_all)))),
+            "latent_sd_median": float(np.median(np.sqrt(np.maximum(v_ev, 0.0)))),
             "heldout_blocks": int(n_blocks),
             "heldout_median_abs_z": float(np.median(np.abs(z))),
             "heldout_coverage95_unscaled": float(np.mean(np.abs(z) < 1.959964)),

@@ -26,6 +26,7 @@ from numba import njit
 from crgpr.gp import GP
 from crgpr.gp.sampling import (
     CompressedSamples,
+    SparsePosterior,
     exact_posterior,
     heldout_block_scale,
     inducing_indices,
@@ -176,21 +177,31 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
 _subset = subset_spec
 
 
-def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None) -> tuple[float, dict[str, Any]]:
+_SCALE_SOURCES = {
+    "rms": "held-out contiguous blocks of the training rows, rms of the held-out z (latent predictive)",
+    "median": "held-out contiguous blocks of the training rows, median of the held-out z (latent predictive)",
+    "split": "held-out contiguous blocks of the training rows, maximum likelihood of r ~ N(0, c^2 v_latent "
+             "+ s^2), s the targets' own error (not sampled)",
+    "jackknife": "delete-a-block jackknife over contiguous blocks of the training rows: c^2 = median over "
+                 "training inputs of the jackknife variance of the posterior mean / the posterior variance",
+}
+
+
+def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None,
+                    full: SparsePosterior | None = None) -> tuple[float, dict[str, Any]]:
     """The factor c of the sampled posterior's sd (``uq.posterior_scale``): 1 for 'none'; for
-    'heldout_split' / 'heldout_median' / 'heldout_rms' c from ``crgpr.gp.sampling.heldout_block_scale`` with
-    ``uq.heldout_blocks`` contiguous (time) blocks, on the inducing inputs ``Z`` when the sampler
-    is sparse."""
+    'heldout_split' / 'heldout_median' / 'heldout_rms' / 'heldout_jackknife' c from
+    ``crgpr.gp.sampling.heldout_block_scale`` with ``uq.heldout_blocks`` contiguous (time)
+    blocks, on the inducing inputs ``Z`` when the sampler is sparse (``full``: the unscaled
+    full-data posterior there, if already built)."""
     if settings.posterior_scale == "none":
         return 1.0, {"posterior_scale": 1.0, "posterior_scale_source": "none (fitted posterior)"}
     t0 = time.perf_counter()
     stat = settings.posterior_scale.removeprefix("heldout_")
-    c, info = heldout_block_scale(spec, settings.heldout_blocks,
-                                  Z if settings.sampler == "sparse_pathwise" else None, stat)
-    info["posterior_scale_source"] = (
-        f"held-out contiguous blocks of the training rows, {stat} of the held-out z (latent predictive)"
-        if stat != "split" else "held-out contiguous blocks of the training rows, maximum likelihood of "
-        "r ~ N(0, c^2 v_latent + s^2), s the targets' own error (not sampled)")
+    sparse = settings.sampler == "sparse_pathwise"
+    c, info = heldout_block_scale(spec, settings.heldout_blocks, Z if sparse else None, stat,
+                                  settings.check_points, full if sparse else None)
+    info["posterior_scale_source"] = _SCALE_SOURCES[stat]
     info["posterior_scale_seconds"] = time.perf_counter() - t0
     return c, info
 
@@ -222,7 +233,8 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         Z, z_src = spec.Xs[idx], "farthest points (crgpr.gp.select_inducing)"
     else:
         idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
-    c, cinfo = posterior_scale(spec, settings, Z)
+    sp0 = sparse_posterior(spec, Z) if settings.sampler == "sparse_pathwise" else None
+    c, cinfo = posterior_scale(spec, settings, Z, sp0)
     sspec = scaled_spec(spec, c) if c != 1.0 else spec
     info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
                             "inducing": int(Z.shape[0]), "inducing_source": z_src,
@@ -231,7 +243,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     ra = getattr(spec, "rollout_arrays", {})
     info.update(cinfo)
     if settings.sampler == "sparse_pathwise":
-        sp = sparse_posterior(sspec, Z)
+        sp = sp0.scaled(c) if c != 1.0 else sp0  # = sparse_posterior(sspec, Z), one factorisation
         comp = sp.sample(settings.n_samples, settings.n_features, rng)
         if "dtc_w" in ra:
             # centre the samples exactly on the rollout's mean model: its DTC coefficients plus
@@ -249,7 +261,8 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
             idx = np.array([int(np.argmin(((spec.Xs - z) ** 2).sum(1))) for z in Z])
         smp = pathwise_samples(exact_posterior(sspec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
-    comp, rinfo = _reduced(comp, spec, settings, c, np.random.default_rng(seed + 3))
+    comp, rinfo = _reduced(comp, spec, settings, c, np.random.default_rng(seed + 3),
+                           sp if settings.sampler == "sparse_pathwise" else None)
     info.update(rinfo)
     info["sampling_s"] = time.perf_counter() - t0
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
@@ -300,12 +313,14 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     return comp, info
 
 
-def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, rng: np.random.Generator
-             ) -> tuple[CompressedSamples, dict[str, Any]]:
+def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, rng: np.random.Generator,
+             posterior: SparsePosterior | None = None) -> tuple[CompressedSamples, dict[str, Any]]:
     """The samples on a low-rank subset of their inducing inputs (``reduce_update_rank`` with
     ``uq.update_rank_tol``) if that changes no sample by more than ``uq.update_rank_max_error``
     posterior sd at ``check_points`` random training inputs and is at most half the terms;
-    else unchanged. Same function draws, fewer kernel terms a rollout step."""
+    else unchanged. Same function draws, fewer kernel terms a rollout step. ``posterior``: the
+    sampler's own (scaled) DTC posterior on the samples' inducing inputs, whose sd is the one
+    measured against (built here when not given, e.g. for compressed exact samples)."""
     M = comp.Z.shape[0]
     info: dict[str, Any] = {"update_terms": int(M)}
     if settings.update_rank_tol <= 0:
@@ -319,8 +334,9 @@ def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, 
     X = np.broadcast_to(xr, (comp.n_samples, *xr.shape))
     # the samples' posterior sd there (scaled posterior: c x the fitted one), from the ensemble's
     # own kernel: DTC variance of the sampled GP
-    Zs = comp.Z
-    _, var = sparse_posterior(scaled_spec(spec, c) if c != 1.0 else spec, Zs).mean_var(xr)
+    if posterior is None or not np.array_equal(posterior.Z, comp.Z):
+        posterior = sparse_posterior(scaled_spec(spec, c) if c != 1.0 else spec, comp.Z)
+    _, var = posterior.mean_var(xr)
     sd = np.sqrt(np.maximum(var, 1e-300))
     err = float(np.max(np.abs(red(X) - comp(X)) / sd))
     info["update_rank_pivots"] = int(r)

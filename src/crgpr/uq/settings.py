@@ -8,7 +8,7 @@ from typing import Any
 from crgpr.config import ConfigError
 
 SAMPLERS = ("sparse_pathwise", "exact_pathwise")
-POSTERIOR_SCALES = ("heldout_split", "heldout_median", "heldout_rms", "none")
+POSTERIOR_SCALES = ("heldout_jackknife", "heldout_split", "heldout_median", "heldout_rms", "none")
 
 
 @dataclass(frozen=True)
