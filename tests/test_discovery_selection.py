@@ -218,3 +218,72 @@ def test_alternatives_are_swaps_the_data_do_not_tell_apart(st):
     out = alternatives([rec, worse, sign, other], ["tip_mass", "air_drag"], 0.01, st)
     assert [(a["named"], a["alternative"]) for a in out] == [("air_drag", "viscous_drag")]
     assert alternatives([rec], [], 0.01, st) == []  # nothing named: no alternatives
+
+
+def test_trajectory_fit_jacobian_is_the_derivative_of_its_residual():
+    """The fitter's Jacobian: initial-state columns from the tangent-linear run (exact),
+    coefficient columns by least_squares' own forward differences; both match central
+    differences of the theta residual at the markers, and its residual is the fit's own."""
+    from crgpr.discovery.kinematics import Kinematics
+    from crgpr.discovery.selection import TrajectoryFitter, rod_state, run_model
+
+    pr = paper_rod(N=10)
+    n, period = 41, 0.005
+    th = np.radians(85.0) - 0.3 * (pr.s / pr.L0) ** 2
+    om = 2.0 * pr.s / pr.L0
+    q0, v0 = rod_state(th, om, np.zeros(2), pr)
+    q = run_model(pr.replace(tip_mass=0.005), q0, v0, period, n, 1e-4)
+    t = np.arange(n) * period
+    vq = np.gradient(q, t, axis=0)
+    kin = Kinematics(t, q, vq, np.gradient(vq, t, axis=0), 1e-3, q[:, 0, 2].copy(),
+                     np.array([0.1, 0.2, 0.3, 0.4, 0.5]) * pr.L0)
+    fitter = TrajectoryFitter(pr, kin, 1e-4, n_modes=2, window_s=0.05)
+    names = ["tip_mass", "viscous_drag"]
+    x = np.array([0.003, 0.02, 0.01, -0.02, 0.05, 0.03])
+    lo, hi = np.zeros(2), np.full(2, np.inf)
+    assert fitter._init_jacobian(names, x[:2], x[2:], n) is not None  # the tangent path, not the fallback
+    J = fitter._jacobian(names, x, 2, (lo, hi), n, 1e-4)
+    r0 = fitter._resid(names, x[:2], x[2:], n)
+    assert J.shape == (r0.size, 6)
+    for i in range(6):
+        h = 1e-6 * max(abs(x[i]), 1e-2)
+        e = np.zeros(6)
+        e[i] = h
+        fd = (fitter._resid(names, (x + e)[:2], (x + e)[2:], n)
+              - fitter._resid(names, (x - e)[:2], (x - e)[2:], n)) / (2 * h)
+        tol = 1e-3 if i < 2 else 1e-6  # forward differences (rel. step 1e-4) vs exact
+        assert np.abs(J[:, i] - fd).max() <= tol * np.abs(fd).max(), i
+
+
+def test_summary_reports_indistinguishable_alternatives_apart_from_correct(tmp_path):
+    """discovery.csv: a name the data cannot tell apart from the true one (an
+    ``indistinguishable_alternatives`` entry) is not counted correct, but is reported, and the
+    case counts as correct up to that alternative only if the alternative is the hidden effect."""
+    import json
+
+    from crgpr.report.discovery import summary
+
+    where = {"residual_moment_peak_s_m": 0.1, "time_window_s": [0.0, 0.1]}
+    inp = {"n_markers": 26, "t0_s": 0.0, "missing_fraction": [0.0], "outliers_total": 0}
+    base = {"verdict": "effect_found", "input": inp, "gap_before": 0.1, "gap_floor": 0.02, "gap_after": 0.02,
+            "tip_gap_before": 0.1, "tip_gap_after": 0.01, "explained_fraction": 0.8, "where": where,
+            "timing_s": {"total": 1.0}}
+    eff = [{"name": "tip_mass", "coefficient": 0.01, "coefficient_std": 0.001},
+           {"name": "air_drag", "coefficient": 0.03, "coefficient_std": 0.01}]
+    truth = {"effects": {"tip_mass": 0.01, "viscous_drag": 0.04}, "effect_size_rmse_theta_rad": 0.3}
+    cases = {"alt_true": [{"named": "air_drag", "alternative": "viscous_drag", "trajectory_delta_bic": -9.6,
+                           "rmse": 0.02}],
+             "alt_other": [{"named": "air_drag", "alternative": "internal_damping",
+                            "trajectory_delta_bic": -3.0, "rmse": 0.02}],
+             "no_alt": []}
+    tps, rps = [], []
+    for name, alts in cases.items():
+        tp, rp = tmp_path / f"{name}_t.json", tmp_path / f"{name}_r.json"
+        tp.write_text(json.dumps(truth))
+        rp.write_text(json.dumps({**base, "effects": eff, "indistinguishable_alternatives": alts}))
+        tps.append(tp)
+        rps.append(rp)
+    df = summary(list(cases), tps, rps, 0.02, tmp_path / "d.csv", tmp_path / "d.png").set_index("case")
+    assert not df["correct"].any()
+    assert df.loc["alt_true", "indistinguishable"] == "air_drag~viscous_drag"
+    assert df["correct_up_to_indistinguishable"].tolist() == [True, False, False]

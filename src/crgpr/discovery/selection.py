@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
+from scipy.optimize._numdiff import approx_derivative  # least_squares' own differences
 
 from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS
 from crgpr.discovery.kinematics import Kinematics, marker_matrix, marker_positions, smooth_kinematics
@@ -132,12 +133,45 @@ def rod_state(theta: np.ndarray, omega: np.ndarray, base: np.ndarray, params: Ro
     return q0, v0
 
 
+def rod_state_tangent(theta: np.ndarray, omega: np.ndarray, dtheta: np.ndarray, domega: np.ndarray,
+                      params: RodParams) -> tuple[np.ndarray, np.ndarray]:
+    """Derivatives (dq0, dv0) (m, N+1, 3) of ``rod_state`` at (theta, omega) along m directions
+    (dtheta, domega) (m, N+1) of the nodal angles and rates."""
+    tb = 0.5 * (theta[1:] + theta[:-1])
+    wb = 0.5 * (omega[1:] + omega[:-1])
+    dtb = 0.5 * (dtheta[:, 1:] + dtheta[:, :-1])
+    dwb = 0.5 * (domega[:, 1:] + domega[:, :-1])
+    seg = params.ds * params.nu1_0
+    c, s = np.cos(tb), np.sin(tb)
+    m = dtheta.shape[0]
+    dq0 = np.zeros((m, params.N + 1, 3))
+    dv0 = np.zeros((m, params.N + 1, 3))
+    dq0[:, 1:, 0] = np.cumsum(-seg * s * dtb, axis=1)
+    dq0[:, 1:, 1] = np.cumsum(seg * c * dtb, axis=1)
+    dq0[:, :, 2] = dtheta
+    dv0[:, 1:, 0] = np.cumsum(-seg * (dwb * s + wb * c * dtb), axis=1)
+    dv0[:, 1:, 1] = np.cumsum(seg * (dwb * c - wb * s * dtb), axis=1)
+    dv0[:, :, 2] = domega
+    if params.clamped:
+        dv0[:, 0, 2] = 0.0
+    return dq0, dv0
+
+
 def run_model(params: RodParams, q0: np.ndarray, v0: np.ndarray, period: float, n_samples: int,
               dt_max: float) -> np.ndarray:
     """Simulate ``params`` from (q0, v0); q (n_samples, N+1, 3) on the measured time grid."""
     st = aligned_settings(params, dt_max, period, n_samples)
     tr = simulate(math.degrees(q0[0, 2]), params, st, q0=q0, v0=v0)
     return tr.q[:n_samples]
+
+
+def run_model_tangent(params: RodParams, q0: np.ndarray, v0: np.ndarray, dq0: np.ndarray, dv0: np.ndarray,
+                      period: float, n_samples: int, dt_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """``run_model`` (the same q to the last bit) and the derivatives dq (n_samples, m, N+1, 3)
+    of its records along the m initial-state directions (dq0, dv0) (tangent-linear scheme)."""
+    st = aligned_settings(params, dt_max, period, n_samples)
+    tr = simulate(math.degrees(q0[0, 2]), params, st, q0=q0, v0=v0, dq0=dq0, dv0=dv0)
+    return tr.q[:n_samples], tr.dq[:n_samples]
 
 
 def theta_rmse(qa: np.ndarray, qb: np.ndarray, M: np.ndarray) -> float:
@@ -461,6 +495,52 @@ class TrajectoryFitter:
         return run_model(augmented_params(self.params, names, coef), q0, v0, self.period,
                          n or self.n, self.dt_max)
 
+    def _init_jacobian(self, names: list[str], coef: np.ndarray, c: np.ndarray, n: int
+                       ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Residual of ``_resid`` and its exact Jacobian with respect to the 2 n_modes initial-
+        state corrections c, from one tangent-linear run (the derivative of this discrete
+        model's theta at the markers; it replaces 2 n_modes finite-difference simulations,
+        which were most of a fit's cost). None if the model diverges or is not finite."""
+        m = self.n_modes
+        theta = self.theta + self.P @ c[:m]
+        omega = self.omega + self.w_scale * (self.P @ c[m:])
+        q0, v0 = rod_state(theta, omega, self.base, self.params)
+        zero = np.zeros((m, self.params.N + 1))
+        dth = np.concatenate([self.P.T, zero])
+        dom = np.concatenate([zero, self.w_scale * self.P.T])
+        dq0, dv0 = rod_state_tangent(theta, omega, dth, dom, self.params)
+        try:
+            q, dq = run_model_tangent(augmented_params(self.params, names, coef), q0, v0, dq0, dv0,
+                                      self.period, n, self.dt_max)
+        except SimulationDiverged:
+            return None
+        r = (q[..., 2] @ self.M.T - self.theta_m[:n]).ravel()
+        J = np.einsum("taj,mj->tma", dq[..., 2], self.M).reshape(r.size, 2 * m)
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+            return None
+        return r, J
+
+    def _jacobian(self, names: list[str], x: np.ndarray, n_coef: int, bounds: tuple[np.ndarray, np.ndarray],
+                  n: int, rel_step: float) -> np.ndarray:
+        """Jacobian of the theta residual at x = [coefficients (n_coef), corrections]: the
+        coefficient columns by the same forward differences ``least_squares`` takes (same
+        steps, bounds and base residual, so the same numbers), the correction columns exact
+        (``_init_jacobian``). Falls back to differences for all columns if the model
+        diverges."""
+        coef, c = x[:n_coef], x[n_coef:]
+        tan = self._init_jacobian(names, coef, c, n)
+        if tan is None:
+            return approx_derivative(lambda y: self._resid(names, y[:n_coef], y[n_coef:], n), x,
+                                     method="2-point", rel_step=rel_step,
+                                     bounds=(np.concatenate([bounds[0], np.full(c.size, -np.inf)]),
+                                             np.concatenate([bounds[1], np.full(c.size, np.inf)])))
+        r0, Jc = tan
+        if not n_coef:
+            return Jc
+        Jk = approx_derivative(lambda y: self._resid(names, y, c, n), coef, method="2-point",
+                               rel_step=rel_step, f0=r0, bounds=bounds)
+        return np.concatenate([np.atleast_2d(Jk).reshape(r0.size, n_coef), Jc], axis=1)
+
     def _resid(self, names: list[str], coef: np.ndarray, c: np.ndarray, n: int) -> np.ndarray:
         try:
             q = self.simulate(names, coef, c, n)
@@ -496,8 +576,15 @@ class TrajectoryFitter:
         names = names or []
         coef = np.zeros(0) if coef is None else coef
         c0 = np.zeros(2 * self.n_modes) if c0 is None else c0
-        sol = least_squares(lambda c: self._resid(names, coef, c, self.window), c0, x_scale=0.01,
-                            diff_step=1e-4, max_nfev=10 * (2 * self.n_modes + 1))
+        def jac(c: np.ndarray) -> np.ndarray:
+            tan = self._init_jacobian(names, coef, c, self.window)
+            if tan is None:
+                return approx_derivative(lambda y: self._resid(names, coef, y, self.window), c,
+                                         method="2-point", rel_step=1e-4)
+            return tan[1]
+
+        sol = least_squares(lambda c: self._resid(names, coef, c, self.window), c0, x_scale=0.01, jac=jac,
+                            max_nfev=10 * (2 * self.n_modes + 1))
         return sol.x
 
     def fit(self, names: list[str], x0: np.ndarray, x_std: np.ndarray, max_nfev: int,
@@ -549,10 +636,14 @@ class TrajectoryFitter:
             lo_in = np.where(np.isfinite(lo), lo + 1e-9 * np.maximum(np.abs(lo), 1e-6), lo)
             hi_in = np.where(np.isfinite(hi), hi - 1e-9 * np.maximum(np.abs(hi), 1e-6), hi)
         x_init[:k] = np.clip(x_init[:k], lo_in, hi_in)
+        def joint_jac(x: np.ndarray) -> np.ndarray:
+            calls[0] += 1 + k  # one tangent-linear run and k coefficient differences
+            return self._jacobian(names, x, k, (lo, hi), self.n, 1e-4)
+
         sol = least_squares(joint, x_init, bounds=(np.concatenate([lo, np.full(m2, -np.inf)]),
                                                    np.concatenate([hi, np.full(m2, np.inf)])),
-                            x_scale=np.concatenate([scale, np.full(m2, 0.01)]), diff_step=1e-4,
-                            max_nfev=max(3, max_nfev // 4))  # each step: 1 + k + 2 n_modes simulations
+                            x_scale=np.concatenate([scale, np.full(m2, 0.01)]), jac=joint_jac,
+                            max_nfev=max(3, max_nfev // 4))  # each step: 1 + k simulations, 1 tangent run
         coef, c = sol.x[:k], sol.x[k:]
         r = sol.fun.reshape(self.n, -1)
         tau = _tau(r, 0) * _tau(r, 1)

@@ -78,6 +78,9 @@ class Integration:
     q: np.ndarray
     v: np.ndarray
     dissipated: np.ndarray  # cumulative energy removed by the dissipative flow [J]
+    # tangent-linear records (n_rec, m, N+1, 3) of m initial-state directions (``run_rod``'s
+    # dq0/dv0): dq/d(direction); None when no direction was given
+    dq: np.ndarray | None = None
 
 
 @njit(cache=True)
@@ -91,6 +94,28 @@ def _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h):
         v[i, 0] *= ft * free[i, 0]
         v[i, 1] *= ft * free[i, 1]
         v[i, 2] *= math.exp(-lam_r[i] * h) * free[i, 2]
+        if k_quad[i] > 0.0:
+            sp = math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2)
+            fac = 1.0 / (1.0 + k_quad[i] * sp * h)
+            v[i, 0] *= fac
+            v[i, 1] *= fac
+        ke1 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
+        lost += ke0 - ke1
+    return lost
+
+
+@njit(cache=True)
+def _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h):
+    """``_damp`` with the exponential factors ft = exp(-lam_t h), fr = exp(-lam_r h) computed
+    once per run (the same numbers, so the same result to the last bit; the rod kernel calls
+    this twice per step and the exponentials were about a third of its time)."""
+    n = v.shape[0]
+    lost = 0.0
+    for i in range(n):
+        ke0 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
+        v[i, 0] *= ft[i] * free[i, 0]
+        v[i, 1] *= ft[i] * free[i, 1]
+        v[i, 2] *= fr[i] * free[i, 2]
         if k_quad[i] > 0.0:
             sp = math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2)
             fac = 1.0 / (1.0 + k_quad[i] * sp * h)
@@ -145,6 +170,100 @@ def _kv_damp(v, m_r, P):
 
 
 @njit(cache=True)
+def _damp_tangent(v, dv, ft, fr, k_quad, free, h):
+    """Tangent of ``_damp_factors`` for directions dv (m, N+1, 3), taken at the velocities v
+    BEFORE the flow (call it before ``_damp_factors``): the linear decay, and the derivative of
+    the quadratic-drag factor 1 / (1 + k |v| h) along the direction."""
+    n = v.shape[0]
+    m = dv.shape[0]
+    for i in range(n):
+        a0 = ft[i] * free[i, 0]
+        a1 = ft[i] * free[i, 1]
+        a2 = fr[i] * free[i, 2]
+        vl0 = v[i, 0] * a0
+        vl1 = v[i, 1] * a1
+        sp = math.sqrt(vl0 * vl0 + vl1 * vl1)
+        drag = k_quad[i] > 0.0
+        fac = 1.0 / (1.0 + k_quad[i] * sp * h) if drag else 1.0
+        for a in range(m):
+            d0 = dv[a, i, 0] * a0
+            d1 = dv[a, i, 1] * a1
+            dv[a, i, 2] *= a2
+            if drag:
+                dfac = 0.0
+                if sp > 0.0:
+                    dfac = -k_quad[i] * h * fac * fac * (vl0 * d0 + vl1 * d1) / sp
+                d0, d1 = d0 * fac + vl0 * dfac, d1 * fac + vl1 * dfac
+            dv[a, i, 0] = d0
+            dv[a, i, 1] = d1
+
+
+@njit(cache=True)
+def _kv_tangent(dv, P):
+    """Tangent of ``_kv_damp`` (a linear flow): omega_a <- P omega_a for every direction."""
+    m = dv.shape[0]
+    n = dv.shape[1]
+    w = np.empty(n)
+    for a in range(m):
+        for i in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += P[i, k] * dv[a, k, 2]
+            w[i] = acc
+        for i in range(n):
+            dv[a, i, 2] = w[i]
+
+
+@njit(cache=True)
+def _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF):
+    """Directional derivatives dF (m, N+1, 3) of the variational elastic forces
+    (``rod._internal_forces``) at q along the directions dq (m, N+1, 3); ``dth_base`` (m,):
+    the directions' change of the base spring's rest angle (the initial base angle)."""
+    n = q.shape[0] - 1
+    m = dq.shape[0]
+    for a in range(m):
+        for i in range(n + 1):
+            dF[a, i, 0] = 0.0
+            dF[a, i, 1] = 0.0
+            dF[a, i, 2] = 0.0
+    for j in range(n):
+        ex = (q[j + 1, 0] - q[j, 0]) / ds
+        ey = (q[j + 1, 1] - q[j, 1]) / ds
+        tb = 0.5 * (q[j, 2] + q[j + 1, 2])
+        c = math.cos(tb)
+        s = math.sin(tb)
+        nu1 = c * ex + s * ey
+        nu2 = -s * ex + c * ey
+        dk = (q[j + 1, 2] - q[j, 2]) / ds - kappa0
+        n1 = EA * (nu1 - nu1_0)
+        n2 = GA * (nu2 - nu2_0)
+        dmb_ddk = EI_seg[j] * (1.0 + 3.0 * b_nl * dk * dk)
+        for a in range(m):
+            dex = (dq[a, j + 1, 0] - dq[a, j, 0]) / ds
+            dey = (dq[a, j + 1, 1] - dq[a, j, 1]) / ds
+            dtb = 0.5 * (dq[a, j, 2] + dq[a, j + 1, 2])
+            dc = -s * dtb
+            dsn = c * dtb
+            dnu1 = dc * ex + c * dex + dsn * ey + s * dey
+            dnu2 = -dsn * ex - s * dex + dc * ey + c * dey
+            dn1 = EA * dnu1
+            dn2 = GA * dnu2
+            dmb = dmb_ddk * (dq[a, j + 1, 2] - dq[a, j, 2]) / ds
+            dqx = dn1 * c + n1 * dc - dn2 * s - n2 * dsn
+            dqy = dn1 * s + n1 * dsn + dn2 * c + n2 * dc
+            dF[a, j, 0] += dqx
+            dF[a, j + 1, 0] -= dqx
+            dF[a, j, 1] += dqy
+            dF[a, j + 1, 1] -= dqy
+            dtq = 0.5 * ds * (dn1 * nu2 + n1 * dnu2 - dn2 * nu1 - n2 * dnu1)
+            dF[a, j, 2] -= dtq - dmb
+            dF[a, j + 1, 2] -= dtq + dmb
+    if k_base < np.inf:
+        for a in range(m):
+            dF[a, 0, 2] -= k_base * (dq[a, 0, 2] - dth_base[a])
+
+
+@njit(cache=True)
 def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
     """Elastic force kernel of the spatial scheme, index into ``SCHEMES`` (0: variational,
     rod.py; 1: collocated, 2: collocated_nodal, collocated.py)."""
@@ -158,20 +277,41 @@ def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, t
 @njit(cache=True)
 def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kappa0,
                 nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv,
-                scheme):
-    """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step."""
+                scheme, dq, dv, out_dq):
+    """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step.
+
+    ``dq``, ``dv`` (m, N+1, 3): m directions of the initial state, propagated by the tangent-
+    linear scheme alongside (variational scheme only; m = 0: none) and recorded in ``out_dq``;
+    the rollout itself does the same arithmetic with or without them."""
     n = q.shape[0]
+    m = dq.shape[0]
     F = np.zeros((n, 3))
+    dF = np.zeros((m, n, 3))
+    dth_base = np.empty(m)  # the base spring's rest angle is the initial base angle
+    for a in range(m):
+        dth_base[a] = dq[a, 0, 2]
     _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    if m > 0:
+        _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF)
+        out_dq[0] = dq
     diss = 0.0
     out_q[0] = q
     out_v[0] = v
     out_d[0] = 0.0
     h = 0.5 * dt
+    ft = np.empty(n)
+    fr = np.empty(n)
+    for i in range(n):
+        ft[i] = math.exp(-lam_t[i] * h)
+        fr[i] = math.exp(-lam_r[i] * h)
     use_kv = kv.shape[0] > 0
     bx, by = q[0, 0], q[0, 1]
     for k in range(1, n_steps + 1):
-        diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if m > 0:
+            _damp_tangent(v, dv, ft, fr, k_quad, free, h)
+            if use_kv:
+                _kv_tangent(dv, kv)
+        diss += _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
         if use_kv:
             diss += _kv_damp(v, m_r, kv)
         for i in range(n):
@@ -181,12 +321,30 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             q[i, 0] += dt * v[i, 0]
             q[i, 1] += dt * v[i, 1]
             q[i, 2] += dt * v[i, 2]
+        for a in range(m):
+            for i in range(n):
+                dv[a, i, 0] += h * dF[a, i, 0] / m_t[i] * free[i, 0]
+                dv[a, i, 1] += h * dF[a, i, 1] / m_t[i] * free[i, 1]
+                dv[a, i, 2] += h * dF[a, i, 2] / m_r[i] * free[i, 2]
+                dq[a, i, 0] += dt * dv[a, i, 0]
+                dq[a, i, 1] += dt * dv[a, i, 1]
+                dq[a, i, 2] += dt * dv[a, i, 2]
         _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
             v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
-        diss += _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        if m > 0:
+            _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF)
+            for a in range(m):
+                for i in range(n):
+                    dv[a, i, 0] += h * dF[a, i, 0] / m_t[i] * free[i, 0]
+                    dv[a, i, 1] += h * dF[a, i, 1] / m_t[i] * free[i, 1]
+                    dv[a, i, 2] += h * dF[a, i, 2] / m_r[i] * free[i, 2]
+            _damp_tangent(v, dv, ft, fr, k_quad, free, h)
+            if use_kv:
+                _kv_tangent(dv, kv)
+        diss += _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
         if use_kv:
             diss += _kv_damp(v, m_r, kv)
         if k % every == 0:
@@ -203,6 +361,8 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             out_q[r] = q
             out_v[r] = v
             out_d[r] = diss
+            if m > 0:
+                out_dq[r] = dq
     return -1
 
 
@@ -234,33 +394,48 @@ def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
 
 
 def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
-            length=None, kv: np.ndarray | None = None, scheme: str = "variational"):
+            length=None, kv: np.ndarray | None = None, scheme: str = "variational",
+            dq0: np.ndarray | None = None, dv0: np.ndarray | None = None):
     """Integrate the analytic rod (compiled ``run_generic``). ``rod_args`` are the trailing
     arguments of the force kernel; ``grav_force`` the nodal y-force of gravity (-m_i g);
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
     Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
     ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
-    rod.py; 'collocated' or 'collocated_nodal', collocated.py). Raises SimulationDiverged."""
+    rod.py; 'collocated' or 'collocated_nodal', collocated.py). ``dq0``, ``dv0`` (m, N+1, 3):
+    directions of the initial state whose tangent-linear propagation (the exact derivative of
+    this discrete scheme's records with respect to the initial state) is returned in
+    ``Integration.dq`` (variational scheme; the rollout is the same to the last bit with or
+    without them). Raises SimulationDiverged."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")
     v = np.array(v0, dtype=float, order="C") * free
+    if dq0 is None:
+        dq = np.zeros((0, q.shape[0], 3))
+        dv = np.zeros_like(dq)
+    else:
+        if scheme != "variational":
+            raise ValueError(f"tangent directions need the variational scheme, not {scheme!r}")
+        dq = np.array(dq0, dtype=float, order="C")
+        dv = np.array(np.zeros_like(dq) if dv0 is None else dv0, dtype=float, order="C") * free
     base = q[0, :2].copy()
     reach = REACH * (rod_length(q) if length is None else float(length))
     out_q = np.zeros((n_rec, q.shape[0], 3))
     out_v = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
+    out_dq = np.zeros((n_rec if dq.shape[0] else 0, *dq.shape))
     status = _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, *rod_args,
-                         dt, n_steps, every, reach, out_q, out_v, out_d, kv, SCHEMES.index(scheme))
+                         dt, n_steps, every, reach, out_q, out_v, out_d, kv, SCHEMES.index(scheme),
+                         dq, dv, out_dq)
     t = np.arange(n_rec) * dt * every
     if status >= 0:
         r = status // every
         raise _diverged("simulation", status, dt, diverged_nodes(q, v, base, reach),
                         " Reduce the time step (config key simulation.dt_s) or check the parameters.",
                         Integration(t[:r], out_q[:r], out_v[:r], out_d[:r]))
-    return Integration(t, out_q, out_v, out_d)
+    return Integration(t, out_q, out_v, out_d, out_dq if dq.shape[0] else None)
 
 
 def run_verlet(

@@ -43,6 +43,7 @@ class Trajectory:
     params: RodParams
     dissipated: np.ndarray | None = None
     scheme: str = "variational"  # spatial scheme that produced it (its energy's V)
+    dq: np.ndarray | None = None  # tangent records (n_t, m, N+1, 3) of ``simulate``'s dq0/dv0
 
     @property
     def z(self) -> np.ndarray:
@@ -72,13 +73,18 @@ def simulate(
     settings: SimSettings,
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
+    dq0: np.ndarray | None = None,
+    dv0: np.ndarray | None = None,
 ) -> Trajectory:
     """Simulate the rod released at rest, straight, at theta0 [deg] from +x (clamped base).
 
     ``q0``/``v0`` (N+1, 3) override the initial configuration / velocities (the base node
-    stays where ``q0`` puts it). ``settings.scheme`` picks the spatial discretisation of the
-    elastic forces (rod.py or collocated.py); masses, damping, gravity and the integrator are
-    the same for both. Raises ``SimulationDiverged`` if the run blows up.
+    stays where ``q0`` puts it). ``dq0``/``dv0`` (m, N+1, 3): directions of (q0, v0) whose
+    exact derivatives dq/d(direction) of the discrete trajectory are returned in
+    ``Trajectory.dq`` (tangent-linear scheme, ``integrator.run_rod``; variational scheme).
+    ``settings.scheme`` picks the spatial discretisation of the elastic forces (rod.py or
+    collocated.py); masses, damping, gravity and the integrator are the same for both.
+    Raises ``SimulationDiverged`` if the run blows up.
     """
     th0 = math.radians(theta0_deg)
     q_init = straight_rod(th0, params) if q0 is None else np.array(q0, dtype=float)
@@ -92,13 +98,13 @@ def simulate(
         settings.record_every,
         kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
                                    0.5 * settings.dt),
-        scheme=settings.scheme,
+        scheme=settings.scheme, dq0=dq0, dv0=dv0,
     )
     p = out.v.copy()
     p[..., 0] *= params.rhoA
     p[..., 1] *= params.rhoA
     p[..., 2] *= params.rhoI
-    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated, settings.scheme)
+    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated, settings.scheme, out.dq)
 
 
 def velocities(traj: Trajectory) -> np.ndarray:

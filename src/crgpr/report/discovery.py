@@ -167,11 +167,19 @@ def summary(cases: list[str], truths: list[str], results: list[str], min_gap_rad
         expected = "effect_found" if truth["effects"] else "unexplained" if dist else "none"
         inp = res["input"]
         coef = {e["name"]: e for e in res["effects"]}
+        alts = res.get("indistinguishable_alternatives", [])
+        # a wrong name whose true replacement the data cannot tell apart from it (|delta BIC| <
+        # bic_min_improvement in the named model) is reported as such, not counted correct
+        swapped = {a["named"]: a["alternative"] for a in alts}
+        named_or_alt = {swapped[k] if k in swapped and swapped[k] in truth["effects"] else k for k in named}
         rows.append({
             "case": case, "hidden": ";".join(hidden) or "none", "named": ";".join(named) or "none",
             "verdict": res["verdict"], "expected_verdict": expected,
             # every hidden effect named and nothing else
             "correct": bool(res["verdict"] == expected and set(named) == set(truth["effects"])),
+            "indistinguishable": ";".join(f"{a['named']}~{a['alternative']}" for a in alts) or None,
+            "correct_up_to_indistinguishable": bool(res["verdict"] == expected
+                                                    and named_or_alt == set(truth["effects"])),
             "coefficient_true": ";".join(f"{v:.4g}" for v in truth["effects"].values()) or None,
             "coefficient_est": ";".join(f"{coef[k]['coefficient']:.4g}" for k in named) or None,
             "coefficient_std": ";".join(f"{coef[k]['coefficient_std']:.2g}" for k in named) or None,
