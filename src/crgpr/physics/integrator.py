@@ -84,31 +84,22 @@ class Integration:
 
 
 @njit(cache=True)
-def _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h):
-    """Exact dissipative flow over time h; returns kinetic energy removed [J]."""
-    n = v.shape[0]
-    lost = 0.0
+def _damp_exponentials(lam_t, lam_r, h):
+    """The factors ft = exp(-lam_t h), fr = exp(-lam_r h) of the linear damping flow over time
+    h, computed once per run (``math.exp``, as the kernels always did)."""
+    n = lam_t.shape[0]
+    ft = np.empty(n)
+    fr = np.empty(n)
     for i in range(n):
-        ke0 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
-        ft = math.exp(-lam_t[i] * h)
-        v[i, 0] *= ft * free[i, 0]
-        v[i, 1] *= ft * free[i, 1]
-        v[i, 2] *= math.exp(-lam_r[i] * h) * free[i, 2]
-        if k_quad[i] > 0.0:
-            sp = math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2)
-            fac = 1.0 / (1.0 + k_quad[i] * sp * h)
-            v[i, 0] *= fac
-            v[i, 1] *= fac
-        ke1 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
-        lost += ke0 - ke1
-    return lost
+        ft[i] = math.exp(-lam_t[i] * h)
+        fr[i] = math.exp(-lam_r[i] * h)
+    return ft, fr
 
 
 @njit(cache=True)
 def _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h):
-    """``_damp`` with the exponential factors ft = exp(-lam_t h), fr = exp(-lam_r h) computed
-    once per run (the same numbers, so the same result to the last bit; the rod kernel calls
-    this twice per step and the exponentials were about a third of its time)."""
+    """Exact dissipative flow over time h with the factors of ``_damp_exponentials`` (linear
+    rates) and the quadratic drag k_quad; returns kinetic energy removed [J]."""
     n = v.shape[0]
     lost = 0.0
     for i in range(n):
@@ -299,11 +290,7 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
     out_v[0] = v
     out_d[0] = 0.0
     h = 0.5 * dt
-    ft = np.empty(n)
-    fr = np.empty(n)
-    for i in range(n):
-        ft[i] = math.exp(-lam_t[i] * h)
-        fr[i] = math.exp(-lam_r[i] * h)
+    ft, fr = _damp_exponentials(lam_t, lam_r, h)
     use_kv = kv.shape[0] > 0
     bx, by = q[0, 0], q[0, 1]
     for k in range(1, n_steps + 1):
@@ -523,10 +510,11 @@ def run_generic(
     h = 0.5 * dt
 
     kvm = None if kv is None or kv.shape[0] == 0 else np.ascontiguousarray(kv, dtype=float)
+    ft, fr = _damp_exponentials(np.asarray(lam_t, dtype=float), np.asarray(lam_r, dtype=float), h)
 
     def damp(v: np.ndarray) -> tuple[np.ndarray, float]:
         v = np.ascontiguousarray(v)
-        lost = _damp(v, m_t, m_r, lam_t, lam_r, k_quad, free, h)
+        lost = _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
         if kvm is not None:
             lost += _kv_damp(v, m_r, kvm)
         return v, lost
