@@ -108,6 +108,7 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
     t = np.linspace(0, 1, n_t)[:, None, None]
     s = np.linspace(0, 1, n_nodes)[None, :, None]
     cov = {lv: [] for lv in LEVELS}
+    frac = []
     for _ in range(30):
         amp = rng.standard_normal((S + 1, 1, 1, 3))
         ph = rng.uniform(0, 2 * np.pi, (S + 1, 1, 1, 3))
@@ -115,13 +116,23 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
         rows = coverage_rows(fam[:S], fam[S], LEVELS, [S])
         for r in rows:
             cov[r["level"]].append(r["theta_coverage"])
+            assert r["loo"].shape == (S,)
+            # leave-one-out: each sample covered by the other S - 1, on average e(S - 1, L)
+            e1 = expected_coverage(S - 1, r["level"])
+            assert abs(r["loo"].mean() - e1) < 4 * r["calibrated_coverage_sd"] / np.sqrt(S) + 0.02
+            frac.append(r["calibrated_fraction_at_least"])
     for lv in LEVELS:
         e = expected_coverage(S, lv)
         assert abs(np.mean(cov[lv]) - e) < 3 * np.sqrt(e * (1 - e) / (S + 2)) / np.sqrt(30) + 0.02
+    # the truth is exchangeable with the samples: its rank among the leave-one-out coverages is
+    # uniform, the fraction at least as large ~0.5 (sd of the mean of 120 correlated values
+    # <= 0.29 / sqrt(30) = 0.053: bounds > 3.5 sd)
+    assert 0.3 < np.mean(frac) < 0.75, np.mean(frac)
     fam = 1e-3 * rng.standard_normal((S, n_t, n_nodes, 3))
     rows = coverage_rows(fam, np.full((n_t, n_nodes, 3), 0.2), LEVELS, [10, S], fam.mean(0))
     assert len(rows) == 2 * len(LEVELS) and {r["n_samples"] for r in rows} == {10, S}
     assert all(r["theta_coverage"] == 0.0 and r["tip_coverage"] == 0.0 for r in rows)
+    assert all(r["calibrated_fraction_at_least"] == 1.0 for r in rows)  # too narrow: flagged
     assert rows[0]["theta_rmse_mean_model"] == pytest.approx(0.2, rel=0.05)
     df = pd.DataFrame([{"method": "m", "theta0_deg": a, "n_diverged": 0, **r} for a in (60.0, 125.0)
                        for r in rows])[list(COVERAGE_COLUMNS)]
