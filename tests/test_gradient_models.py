@@ -166,3 +166,19 @@ def test_smooth_model_rolls_out_on_a_low_rank_dtc_mean(smoke):
     red = KernelMean.dtc(gp, arrays["dtc_Z"][arrays["rollout_pivots"]], arrays["rollout_w"][:, 0],
                          arrays["dtc_beta"][:, 0])
     assert np.max(np.abs(red(Xs) - exact(Xs))) <= 1e-2 * report["target_std"]
+
+
+def test_a_trajectory_that_never_bends_is_refused_with_the_features_it_does_not_excite(smoke, tmp_path):
+    """Released along gravity (90 deg) the rod only bounces axially: kappa is exactly 0 and the
+    shear strain round-off (~1e-19) at every sample. Such a training trajectory cannot teach a
+    bending law; the fit stops with one message naming the model, the features and the config
+    key, instead of a singular basis solve (LinAlgError) or a GP of round-off noise."""
+    cfg, _, _ = smoke
+    traj = simulate(90.0, rod_params(cfg), sim_settings(cfg))
+    assert np.ptp(traj.q[..., 2]) < 1e-12  # the premise: theta never moves
+    df, _ = fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
+    df.to_parquet(tmp_path / "fd90.parquet")
+    with pytest.raises(ValueError, match=r"fd90.parquet: model obj_n1: the training trajectory does "
+                                         r"not excite nu2 .*kappa .*gradient_models.min_input_spread"):
+        train_model(cfg, "obj_n1", tmp_path / "fd90.parquet", tmp_path / "obj_n1", "fd")
+    assert not (tmp_path / "obj_n1.npz").exists()  # (the 85 deg fits pass the same check: test above)

@@ -383,6 +383,13 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
         X = X[:, columns]
         check_X = None if check_X is None else check_X[:, columns]
         feats = [feats[c] for c in columns]
+    spread = np.ptp(X, axis=0)
+    flat = [f"{f} (spread {sp:.1e})" for f, sp in zip(feats, spread, strict=True)
+            if sp <= float(gm["min_input_spread"])]
+    if flat:
+        raise ValueError(f"{source}: model {name}: the training trajectory does not excite "
+                         f"{', '.join(flat)} (config key gradient_models.min_input_spread); "
+                         "train on a trajectory that moves them (angles.train_deg)")
     if odd_about is not None:
         if X.shape[1] != 1:
             raise ConfigError(f"model {name}: an odd-symmetric law needs one input, got {X.shape[1]}")
