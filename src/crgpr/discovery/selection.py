@@ -14,9 +14,9 @@ the model's grid (``crgpr.discovery.kinematics``) and the nominal model of confi
    state uncertainty (parametric bootstrap: the nominal trajectory re-measured at the same
    markers, with the same missing samples and the GP's noise level, and fitted exactly as the
    data are) and the model's own
-   discretisation error (the nominal model against the same model on a grid twice as fine
-   from the same smooth initial state, Richardson-scaled by 4/3 for a second-order scheme),
-   added in quadrature.
+   discretisation error (the model fitted to the data on its grid and on a grid twice as
+   fine, each with its own initial state; the difference of the two fitted trajectories,
+   Richardson-scaled by 4/3 for a second-order scheme), added in quadrature.
 3. Name. The cut-moment residual of the data against the current model
    (``crgpr.discovery.residual``) is regressed on every candidate's signature; candidates enter
    by forward stepwise selection with the Bayesian information criterion of a heteroscedastic
