@@ -14,7 +14,13 @@ import pytest
 from paper_rod import paper_rod
 
 from crgpr.gp import KernelMean, Table1D, fit_gp, load_evaluator
-from crgpr.gp.sampling import CompressedSamples, exact_posterior, sparse_posterior, spec_from_gp
+from crgpr.gp.sampling import (
+    CompressedSamples,
+    exact_posterior,
+    heldout_block_scale,
+    sparse_posterior,
+    spec_from_gp,
+)
 from crgpr.learning.gradient_models import FEATURE_NAMES, MOMENTUM_MODELS, fit_model
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.physics.params import SimSettings
@@ -22,7 +28,7 @@ from crgpr.physics.simulate import simulate
 from crgpr.uq.calibration import model_features, true_targets
 from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, expected_coverage, summary_rows
 from crgpr.uq.rollout import rollout_samples, rollout_samples_angles
-from crgpr.uq.samples import TabulatedSamples, load_gp_spec, load_samples, sample_model
+from crgpr.uq.samples import TabulatedSamples, centre_on_rollout, load_gp_spec, load_samples, sample_model
 from crgpr.uq.settings import UQSettings
 
 LEVELS = (50.0, 80.0, 90.0, 95.0)
@@ -102,6 +108,7 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
     t = np.linspace(0, 1, n_t)[:, None, None]
     s = np.linspace(0, 1, n_nodes)[None, :, None]
     cov = {lv: [] for lv in LEVELS}
+    frac = []
     for _ in range(30):
         amp = rng.standard_normal((S + 1, 1, 1, 3))
         ph = rng.uniform(0, 2 * np.pi, (S + 1, 1, 1, 3))
@@ -109,13 +116,23 @@ def test_coverage_rows_of_exchangeable_and_biased_ensembles() -> None:
         rows = coverage_rows(fam[:S], fam[S], LEVELS, [S])
         for r in rows:
             cov[r["level"]].append(r["theta_coverage"])
+            assert r["loo"].shape == (S,)
+            # leave-one-out: each sample covered by the other S - 1, on average e(S - 1, L)
+            e1 = expected_coverage(S - 1, r["level"])
+            assert abs(r["loo"].mean() - e1) < 4 * r["calibrated_coverage_sd"] / np.sqrt(S) + 0.02
+            frac.append(r["calibrated_fraction_at_least"])
     for lv in LEVELS:
         e = expected_coverage(S, lv)
         assert abs(np.mean(cov[lv]) - e) < 3 * np.sqrt(e * (1 - e) / (S + 2)) / np.sqrt(30) + 0.02
+    # the truth is exchangeable with the samples: its rank among the leave-one-out coverages is
+    # uniform, the fraction at least as large ~0.5 (sd of the mean of 120 correlated values
+    # <= 0.29 / sqrt(30) = 0.053: bounds > 3.5 sd)
+    assert 0.3 < np.mean(frac) < 0.75, np.mean(frac)
     fam = 1e-3 * rng.standard_normal((S, n_t, n_nodes, 3))
     rows = coverage_rows(fam, np.full((n_t, n_nodes, 3), 0.2), LEVELS, [10, S], fam.mean(0))
     assert len(rows) == 2 * len(LEVELS) and {r["n_samples"] for r in rows} == {10, S}
     assert all(r["theta_coverage"] == 0.0 and r["tip_coverage"] == 0.0 for r in rows)
+    assert all(r["calibrated_fraction_at_least"] == 1.0 for r in rows)  # too narrow: flagged
     assert rows[0]["theta_rmse_mean_model"] == pytest.approx(0.2, rel=0.05)
     df = pd.DataFrame([{"method": "m", "theta0_deg": a, "n_diverged": 0, **r} for a in (60.0, 125.0)
                        for r in rows])[list(COVERAGE_COLUMNS)]
@@ -217,6 +234,49 @@ def test_zero_posterior_variance_reproduces_the_mean_rollout(model_dir: Path, fe
         np.testing.assert_allclose(p[s], ref.p, rtol=1e-7, atol=1e-9 * np.abs(ref.p).max())
 
 
+class _ZeroDraws:
+    """A random generator whose every normal and uniform draw is 0: the sampler's deviations
+    from its mean are linear in its draws, so these samples have zero posterior variance."""
+
+    def standard_normal(self, size: tuple[int, ...]) -> np.ndarray:
+        return np.zeros(size)
+
+    def uniform(self, low: float, high: float, size: tuple[int, ...]) -> np.ndarray:
+        return np.zeros(size)
+
+
+def test_jackknife_covariance_sampler_with_zero_variance_reproduces_the_mean_rollout(model_dir: Path) -> None:
+    """uq.posterior_scale = jackknife_covariance: the objective GPs' samples from their
+    jackknife covariance (``SparsePosterior.sample(jackknife=...)``, 4 leave-one-block-out
+    posteriors), with every draw zero, centred on the rollout mean by the sampler's own
+    ``centre_on_rollout``: the sampled rollout equals the mean rollout to the round-off of the
+    compiled polynomial sums (as the zero-variance test above); with real draws the samples
+    scatter."""
+    mean = LearnedRod.from_dir(model_dir, "objective", PARAMS)
+    ref = rollout(mean, 125.0, SHORT)
+    S = 3
+    smp, real = {}, {}
+    for m in mean.components:
+        if m in MOMENTUM_MODELS:
+            smp[m] = real[m] = _zero_variance_samples(model_dir / m, S)
+            continue
+        spec, Z, _ = load_gp_spec(model_dir / m, m)
+        post = sparse_posterior(spec, Z)
+        coeffs: list[np.ndarray] = []
+        heldout_block_scale(spec, 4, Z, "jackknife", 50, post, coeffs)
+        for rng, out in ((_ZeroDraws(), smp), (np.random.default_rng(2), real)):
+            comp = post.sample(S, 16, rng, np.asarray(coeffs))
+            centre_on_rollout(comp, post, spec.rollout_arrays, 1.0)
+            out[m] = comp
+    t, q, p, keep, div = rollout_samples(smp, "objective", PARAMS, mean.center, 125.0, SHORT)
+    assert div == [] and list(keep) == list(range(S))
+    for s in range(S):
+        np.testing.assert_allclose(q[s], ref.q, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(p[s], ref.p, rtol=1e-7, atol=1e-9 * np.abs(ref.p).max())
+    _, q2, _, _, _ = rollout_samples(real, "objective", PARAMS, mean.center, 125.0, SHORT)
+    assert np.std(q2[:, -1, -1, 2]) > 0
+
+
 def test_sampled_rollout_scatters_and_drops_diverged_samples(model_dir: Path, tmp_path: Path) -> None:
     """Real posterior samples (the uq_samples stage) through the batched rollout: the samples
     differ; a sample made to run away is named by the integrator, recorded and dropped, the rest
@@ -307,6 +367,8 @@ def test_uq_settings_cross_checks() -> None:
         UQSettings.from_section({**u, "paper_n_samples": u["n_samples"] + 1})
     with pytest.raises(ConfigError, match="uq.figure_level"):
         UQSettings.from_section({**u, "figure_level": 99})
+    with pytest.raises(ConfigError, match="jackknife_covariance needs uq.sampler sparse_pathwise"):
+        UQSettings.from_section({**u, "posterior_scale": "jackknife_covariance", "sampler": "exact_pathwise"})
 
 
 def test_angles_batched_equal_each_angle_alone_and_resume_exactly(model_dir: Path, tmp_path: Path) -> None:

@@ -104,6 +104,7 @@ def uq_coverage(uq_paths: Sequence[str], ground_truth: Sequence[str], mean_model
     means = {_method_angle(p): p for p in mean_models}
     cols = ("x", "y", "theta")
     rows = []
+    loos: dict[tuple[str, int, float], list[dict[int, float]]] = {}
     for path in uq_paths:
         method, angle = _method_angle(path)
         df = read_parquet(path, required=UQ_COLUMNS)
@@ -115,21 +116,28 @@ def uq_coverage(uq_paths: Sequence[str], ground_truth: Sequence[str], mean_model
             mm = truth_arrays(read_parquet(means[(method, angle)], required=TRAJECTORY_COLUMNS), t, cols)
         n_div = int(read_metadata(path).get("n_diverged", 0))
         sizes = sorted({settings.paper_n_samples, arr.shape[0]})
+        ids = np.sort(df["sample"].unique())
         for r in coverage_rows(arr, g, settings.levels, sizes, mm):
+            loo = r.pop("loo")
+            loos.setdefault((method, r["n_samples"], r["level"]), []).append(dict(zip(ids.tolist(), loo,
+                                                                                    strict=False)))
             rows.append({"method": method, "theta0_deg": float(angle), "n_diverged": n_div, **r})
     df = pd.DataFrame(rows)[list(COVERAGE_COLUMNS)]
-    df = pd.concat([df, summary_rows(df)], ignore_index=True)
+    df = pd.concat([df, summary_rows(df, loos)], ignore_index=True)
     meta = {"kind": "uq_coverage", "settings": settings.to_dict(),
             "definition": "fraction of ground-truth samples inside the central band of the given level "
                           "(percentiles over the first n_samples sampled trajectories); theta over t > 0 "
                           "and nodes 1..N; tip: x and y both inside; expected_coverage: the value a "
-                          "calibrated model reaches with n_samples; rows with theta0_deg empty: mean "
-                          "over the angles"}
+                          "calibrated model reaches with n_samples; calibrated_coverage_sd / "
+                          "calibrated_fraction_at_least: spread of the coverage of ONE truth that is a "
+                          "draw of the sampled law (leave-one-sample-out) and the fraction of those >= "
+                          "the observed coverage; rows with theta0_deg empty: mean over the angles"}
     write_parquet(df, out, meta)
     write_csv(df.round(5), table)
     log.info("coverage (means over angles):\n%s",
              df[df["theta0_deg"].isna()][["method", "n_samples", "level", "theta_coverage",
-                                           "expected_coverage", "mc_se"]].to_string())
+                                           "expected_coverage", "mc_se", "calibrated_coverage_sd",
+                                           "calibrated_fraction_at_least"]].to_string())
 
 
 def uq_calibration(models: Sequence[str], ground_truth: Sequence[str], rod: Mapping[str, Any],

@@ -89,22 +89,28 @@ def kernel_matrix(kernel: str, A: np.ndarray, B: np.ndarray, sigma_f: float,
     raise GPError(f"unknown kernel {kernel!r}; expected one of {KERNELS}")
 
 
+@njit(cache=True, inline="always")
+def _kernel_value(Ul, i, j, kernel_id, sf2):
+    """k(Ul_i, Ul_j) for scaled inputs (SE: kernel_id 0, else Matern-5/2); the one scalar kernel
+    of the compiled loops (``_fill_kernel`` here, ``_kernel_column`` / ``_kernel_matvec`` in
+    ``evaluators``)."""
+    r2 = 0.0
+    for k in range(Ul.shape[1]):
+        dd = Ul[i, k] - Ul[j, k]
+        r2 += dd * dd
+    if kernel_id == 0:
+        return sf2 * math.exp(-0.5 * r2)
+    r = math.sqrt(r2)
+    return sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+
+
 @njit(cache=True)
 def _fill_kernel(Ul, kernel_id, sf2, noise2, K):
     """K = k(U, U) + noise2 I (lower triangle and diagonal) for scaled inputs, in place."""
-    n, d = Ul.shape
+    n = Ul.shape[0]
     for i in range(n):
         for j in range(i + 1):
-            r2 = 0.0
-            for k in range(d):
-                dd = Ul[i, k] - Ul[j, k]
-                r2 += dd * dd
-            if kernel_id == 0:
-                v = sf2 * math.exp(-0.5 * r2)
-            else:
-                r = math.sqrt(r2)
-                v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
-            K[i, j] = v
+            K[i, j] = _kernel_value(Ul, i, j, kernel_id, sf2)
         K[i, i] += noise2
 
 

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from crgpr.gp._gpr import GP, KERNEL_ID, SQRT5, GPError, _fill_kernel, basis_matrix_std
+from crgpr.gp._gpr import GP, KERNEL_ID, SQRT5, GPError, _fill_kernel, _kernel_value, basis_matrix_std
 
 BASIS_ID = {"none": 0, "constant": 1, "linear": 2, "pure_quadratic": 3}
 _SE_POLY = 2  # kernel id of the SE kernel with the polynomial exp (kernel_sum_fast only)
@@ -165,38 +165,21 @@ def cutoff_radius(kernel: str, tol: float) -> float:
 @njit(cache=True)
 def _kernel_column(Ul, i, kernel_id, sf2, out):
     """out[j] = k(Ul_i, Ul_j) (no noise) for scaled inputs."""
-    n, d = Ul.shape
-    for j in range(n):
-        r2 = 0.0
-        for k in range(d):
-            dd = Ul[i, k] - Ul[j, k]
-            r2 += dd * dd
-        if kernel_id == 0:
-            out[j] = sf2 * math.exp(-0.5 * r2)
-        else:
-            r = math.sqrt(r2)
-            out[j] = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+    for j in range(Ul.shape[0]):
+        out[j] = _kernel_value(Ul, i, j, kernel_id, sf2)
 
 
 @njit(cache=True)
 def _kernel_matvec(Ul, kernel_id, sf2, noise2, X, out):
     """out = (K + noise2 I) X for a block X (n, k) without forming K (symmetric pass)."""
-    n, d = Ul.shape
+    n = Ul.shape[0]
     m = X.shape[1]
     for i in range(n):
         for c in range(m):
             out[i, c] = (sf2 + noise2) * X[i, c]
     for i in range(n):
         for j in range(i):
-            r2 = 0.0
-            for k in range(d):
-                dd = Ul[i, k] - Ul[j, k]
-                r2 += dd * dd
-            if kernel_id == 0:
-                v = sf2 * math.exp(-0.5 * r2)
-            else:
-                r = math.sqrt(r2)
-                v = sf2 * (1.0 + SQRT5 * r + (5.0 / 3.0) * r2) * math.exp(-SQRT5 * r)
+            v = _kernel_value(Ul, i, j, kernel_id, sf2)
             for c in range(m):
                 out[i, c] += v * X[j, c]
                 out[j, c] += v * X[i, c]

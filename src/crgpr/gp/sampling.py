@@ -563,16 +563,37 @@ class SparsePosterior:
         psi = sla.solve_triangular(self.LZ, Kxz.T, lower=True, check_finite=False).T
         return np.hstack([sp.basis_fn(xs), psi])
 
-    def mean_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """DTC predictive mean and variance of f at raw inputs (original units)."""
+    def mean_var(self, x: np.ndarray, jackknife: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """DTC predictive mean and variance of f at raw inputs (original units). With
+        ``jackknife`` (B, p + M) leave-one-block-out coefficient vectors: the variance of the
+        samples ``sample(..., jackknife=...)`` draws (``jackknife_covariance``), same mean."""
         sp = self.spec
         xs = sp.standardise(np.atleast_2d(x))
         F = self.features(xs)
         mean = F @ self.mu
         G = sla.solve_triangular(self.RP, F.T, trans="T", check_finite=False)
         psi = F[:, self.n_basis:]
-        var = (G * G).sum(0) + sp.sigma_f**2 - (psi * psi).sum(1)
+        if jackknife is None:
+            var = (G * G).sum(0)
+        else:
+            B = jackknife.shape[0]
+            dev = F @ (jackknife - jackknife.mean(0)).T  # (m, B)
+            PiF = sla.solve_triangular(self.RP, G, check_finite=False)[self.n_basis:]  # Lambda^1/2 P^-1 F^T
+            var = (B - 1) / B * (dev * dev).sum(1) + (PiF * PiF).sum(0)
+        var = var + sp.sigma_f**2 - (psi * psi).sum(1)
         return sp.to_output(mean), var * sp.out_scale**2
+
+    def jackknife_covariance(self, jackknife: np.ndarray) -> np.ndarray:
+        """The covariance of theta = (beta, v) that ``sample(..., jackknife=...)`` draws from
+        (``jackknife_covariance``): C_jk + P^-1 Lambda P^-1, with C_jk = (B - 1) / B sum_b
+        (theta_-b - mean) (theta_-b - mean)^T over the B leave-one-block-out posterior means and
+        Lambda = diag(0_p, I_M) the prior precision of the kernel weights."""
+        B = jackknife.shape[0]
+        d = jackknife - jackknife.mean(0)
+        Pi = sla.solve_triangular(self.RP, sla.solve_triangular(self.RP, np.eye(self.mu.shape[0]), trans="T",
+                                                                 check_finite=False), check_finite=False)
+        Pv = Pi[:, self.n_basis:]
+        return (B - 1) / B * d.T @ d + Pv @ Pv.T
 
     def scaled(self, c: float) -> SparsePosterior:
         """The DTC posterior of ``scaled_spec(spec, c)`` (sigma_f, sigma_n x c) without a new
@@ -593,14 +614,45 @@ class SparsePosterior:
         a = sla.solve_triangular(self.LZ, self.mu[p:], lower=True, trans="T", check_finite=False)
         return self.mu[:p].copy(), a
 
-    def sample(self, n_samples: int, n_features: int, rng: np.random.Generator) -> CompressedSamples:
+    def sample(self, n_samples: int, n_features: int, rng: np.random.Generator,
+               jackknife: np.ndarray | None = None) -> CompressedSamples:
         """S joint samples f_s = h^T beta_s + psi^T v_s + (phi - k_Z K_ZZ^-1 Phi_Z)^T w_s: the
         DTC posterior of (beta, v) plus an RFF sample of the prior residual k - Q (Wilson et al.
-        2020, eq. 13 with the optimal q(u)), as compressed samples k(u, Z) a_s + ..."""
+        2020, eq. 13 with the optimal q(u)), as compressed samples k(u, Z) a_s + ...
+
+        ``jackknife`` (B, p + M): the coefficient vectors theta_-b of the B leave-one-block-out
+        posteriors (``heldout_block_scale(..., block_coefficients=...)``). Then theta_s - mu is
+        drawn from the cluster-robust ("sandwich") covariance instead of P^-1:
+
+            theta_s = mu + sqrt((B - 1) / B) sum_b xi_sb (theta_-b - mean_b theta_-b)
+                         + P^-1 [0; zeta_s],      xi_sb, zeta_s ~ N(0, 1) iid,
+
+        covariance C_jk + P^-1 Lambda P^-1 (``jackknife_covariance``). P^-1 = P^-1 (F^T F /
+        sigma_n^2 + Lambda) P^-1: its data part, the variance of the posterior mean if the target
+        errors were iid N(0, sigma_n^2), is replaced by the delete-a-block jackknife of that mean
+        (Kuensch 1989; for a linear law the cluster-robust covariance of its coefficients, errors
+        correlated within blocks, independent between them), while the prior part of the kernel
+        weights, which no data determine, is kept. For a GP whose kernel the LML switched off
+        (sigma_f at its bound: a Bayesian linear law in its basis) this is the jackknife
+        covariance of the basis coefficients; data-determined directions get the law's observed
+        spread across blocks (rank <= B - 1), the rest the prior's."""
         sp = self.spec
         rff = draw_rff_batch(sp, n_samples, n_features, rng)
-        z = rng.standard_normal((n_samples, self.mu.shape[0]))
-        theta = self.mu + sla.solve_triangular(self.RP, z.T, check_finite=False).T
+        if jackknife is None:
+            z = rng.standard_normal((n_samples, self.mu.shape[0]))
+            theta = self.mu + sla.solve_triangular(self.RP, z.T, check_finite=False).T
+        else:
+            J = np.asarray(jackknife, dtype=float)
+            B = J.shape[0]
+            if J.ndim != 2 or J.shape[1] != self.mu.shape[0] or B < 2:
+                raise ValueError(f"{sp.name}: jackknife coefficients must be (B >= 2, {self.mu.shape[0]}), "
+                                 f"got {J.shape}")
+            xi = rng.standard_normal((n_samples, B))
+            zeta = np.zeros((n_samples, self.mu.shape[0]))
+            zeta[:, self.n_basis:] = rng.standard_normal((n_samples, self.Z.shape[0]))
+            half = sla.solve_triangular(self.RP, zeta.T, trans="T", check_finite=False)
+            prior = sla.solve_triangular(self.RP, half, check_finite=False)
+            theta = self.mu + np.sqrt((B - 1) / B) * xi @ (J - J.mean(0)) + prior.T
         p = self.n_basis
         beta, v = theta[:, :p], theta[:, p:]
         w = rng.standard_normal((n_samples, n_features))
@@ -682,8 +734,8 @@ HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")
 
 
 def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median",
-                        eval_points: int = 2000, full: ExactPosterior | SparsePosterior | None = None
-                        ) -> tuple[float, dict[str, Any]]:
+                        eval_points: int = 2000, full: ExactPosterior | SparsePosterior | None = None,
+                        block_coefficients: list[np.ndarray] | None = None) -> tuple[float, dict[str, Any]]:
     """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
 
     The rows are split into ``n_blocks`` contiguous blocks (for the gradient GPs: time blocks of
@@ -717,6 +769,9 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
 
     Scaling sigma_f and sigma_n by c (``scaled_spec``) multiplies every posterior variance by c^2
     and keeps the mean. Returns (c, diagnostics with the held-out z statistics).
+    ``block_coefficients`` (a list, sparse case only): receives the coefficient vector
+    theta_-b = (beta, v) of each leave-one-block-out DTC posterior, for
+    ``SparsePosterior.sample(..., jackknife=...)`` (the jackknife covariance, not a scale).
     """
     n = spec.Xs.shape[0]
     if not 2 <= n_blocks <= n // 2:
@@ -733,6 +788,10 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
         tr = np.concatenate([np.arange(0, edges[b]), np.arange(edges[b + 1], n)])
         sub = subset_spec(spec, tr)
         post = sparse_posterior(sub, Z) if Z is not None else exact_posterior(sub)
+        if block_coefficients is not None:
+            if Z is None:
+                raise ValueError(f"{spec.name}: block coefficients need the sparse (inducing) posterior")
+            block_coefficients.append(post.mu.copy())
         x_te = spec.Xs[te] * spec.x_std + spec.x_mean
         m, v = post.mean_var(x_te)
         r = spec.to_output(spec.y[te]) - m

@@ -80,7 +80,9 @@ def reliability_diagram(table: pd.DataFrame, out: str | Path) -> None:
     """Nominal level vs observed theta coverage (mean over the angles, each angle thin), one
     panel per method, for every S reported; the dotted curve is the coverage a calibrated model
     reaches with that S (``expected_coverage``), the diagonal the nominal level; bars are
-    +-2 measured Monte Carlo standard errors of the mean."""
+    +-2 measured Monte Carlo standard errors of the mean; the shaded band (largest S) is +-2
+    ``calibrated_coverage_sd`` around the calibrated curve: where a calibrated model's
+    angle-mean coverage of ONE truth falls (leave-one-sample-out; crgpr.uq.coverage)."""
     methods = list(dict.fromkeys(table["method"]))
     fig, axes = plt.subplots(1, len(methods), figsize=(4.2 * len(methods), 4.2), squeeze=False)
     for ax, method in zip(axes[0], methods, strict=True):
@@ -99,6 +101,11 @@ def reliability_diagram(table: pd.DataFrame, out: str | Path) -> None:
                         color=c, lw=1.6, ms=4, capsize=2, label=f"S = {S}: observed (mean of angles)")
             ax.plot(m["level"] / 100, m["expected_coverage"], ":", color=c, lw=1.4,
                     label=f"S = {S}: calibrated model")
+            sd = m["calibrated_coverage_sd"].to_numpy(dtype=float)
+            if S == max(sizes) and np.isfinite(sd).all():  # the ensemble's own S only (legibility)
+                e = m["expected_coverage"].to_numpy(dtype=float)
+                ax.fill_between(m["level"] / 100, e - 2 * sd, e + 2 * sd, color=c, alpha=0.12, lw=0,
+                                label=f"S = {S}: calibrated, one truth (+-2 sd)")
         ax.set_xlim(0, 1)
         ax.set_ylim(0, 1)
         ax.set_aspect("equal")
@@ -106,6 +113,6 @@ def reliability_diagram(table: pd.DataFrame, out: str | Path) -> None:
         ax.set_ylabel(r"observed $\theta$ coverage")
         ax.set_title(method)
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", fontsize=7)
+        ax.legend(loc="best", fontsize=6)
     fig.tight_layout()
     _save(fig, out)

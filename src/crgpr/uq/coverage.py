@@ -19,6 +19,19 @@ coverage averages such points, correlated along the trajectory, so sqrt(e (1 - e
 bounds its Monte Carlo standard error (``mc_se_bound``). ``mc_se`` is the measured one: the
 spread of the coverage over ``K`` disjoint sub-ensembles, scaled from S / K to S samples by
 the same 1 / (S + 2) law.
+
+The spread of ONE truth (``calibrated_coverage_sd``, ``calibrated_fraction_at_least``). The
+Monte Carlo error above is that of the S samples only. But the ground truth is one
+realisation: if the model is calibrated, the truth's trajectory is one more draw of the law's
+error, the same draw at every time, node and angle (one fitted law is integrated at every
+angle), so the coverage of that one truth scatters around e(S, L) far more than mc_se says,
+and averaging over the angles does not shrink that scatter. It is measured leave-one-out: each
+sample s in turn is the 'truth', covered by the band of the other S - 1 (the coverage a
+calibrated model shows for a truth that is exactly such a draw, reference e(S - 1, L));
+``calibrated_coverage_sd`` is their sd over s, ``calibrated_fraction_at_least`` the fraction of
+them >= the ground truth's coverage (a one-sided calibration p-value with resolution 1 / S:
+near 0 the band is too wide, near 1 too narrow). In the mean over the angles the same sample s
+is the truth at every angle (samples matched by id), so both describe the angle-mean coverage.
 """
 
 from __future__ import annotations
@@ -36,7 +49,7 @@ COVERAGE_COLUMNS: tuple[str, ...] = (
     "method", "theta0_deg", "n_samples", "level", "theta_coverage", "expected_coverage",
     "theta_coverage_minus_expected", "mc_se", "mc_se_bound", "tip_coverage", "tip_x_coverage",
     "tip_y_coverage", "theta_band_width_mean", "tip_band_width_mean", "theta_rmse_median",
-    "theta_rmse_mean_model", "n_diverged",
+    "theta_rmse_mean_model", "calibrated_coverage_sd", "calibrated_fraction_at_least", "n_diverged",
 )
 N_SUBSETS = 4  # K disjoint sub-ensembles for the measured Monte Carlo error
 
@@ -108,13 +121,26 @@ def _coverages(arr: np.ndarray, g: np.ndarray, level: float) -> dict[str, float]
     }
 
 
+def loo_coverages(arr: np.ndarray, level: float) -> np.ndarray:
+    """(S,) theta coverage of sample s by the band of the other S - 1 samples (arr: (S, n_t,
+    n_nodes, 3)): the coverage of a truth that is itself a draw of the sampled law."""
+    lo, hi = band_percentiles(level)
+    th = arr[:, 1:, 1:, 2]
+    out = np.empty(th.shape[0])
+    for s in range(th.shape[0]):
+        qlo, qhi = np.percentile(np.delete(th, s, axis=0), [lo, hi], axis=0)
+        out[s] = np.mean((th[s] >= qlo) & (th[s] <= qhi))
+    return out
+
+
 def coverage_rows(arr: np.ndarray, g: np.ndarray, levels: Sequence[float], sizes: Sequence[int],
                   mean_model: np.ndarray | None = None) -> list[dict[str, Any]]:
     """Rows (one per S used and level) for one method and angle.
 
     ``arr`` (S, n_t, n_nodes, 3) sampled x, y, theta in sample order; ``g`` (n_t, n_nodes, 3) the
     truth; ``sizes``: the S values to report (the first S samples each); ``mean_model``
-    (n_t, n_nodes, 3): the mean-model rollout for ``theta_rmse_mean_model``.
+    (n_t, n_nodes, 3): the mean-model rollout for ``theta_rmse_mean_model``. Each row also holds
+    ``loo`` (S,), the leave-one-out coverages (``loo_coverages``), for ``summary_rows``.
     """
     rows = []
     rmse_mean = (float(np.sqrt(np.mean((mean_model[:, 1:, 2] - g[:, 1:, 2]) ** 2)))
@@ -129,6 +155,10 @@ def coverage_rows(arr: np.ndarray, g: np.ndarray, levels: Sequence[float], sizes
                    "expected_coverage": e, "mc_se_bound": float(np.sqrt(e * (1 - e) / (S + 2))),
                    "theta_rmse_mean_model": rmse_mean}
             row["theta_coverage_minus_expected"] = row["theta_coverage"] - e
+            loo = loo_coverages(sub, level)
+            row["loo"] = loo
+            row["calibrated_coverage_sd"] = float(np.std(loo, ddof=1))
+            row["calibrated_fraction_at_least"] = float(np.mean(loo >= row["theta_coverage"]))
             k = S // N_SUBSETS
             if k >= 2:
                 parts = [_coverages(sub[j * k:(j + 1) * k], g, level)["theta_coverage"]
@@ -140,11 +170,26 @@ def coverage_rows(arr: np.ndarray, g: np.ndarray, levels: Sequence[float], sizes
     return rows
 
 
-def summary_rows(df: pd.DataFrame) -> pd.DataFrame:
+def summary_rows(df: pd.DataFrame, loo: dict[tuple[str, int, float], list[dict[int, float]]] | None = None
+                 ) -> pd.DataFrame:
     """Mean over the angles per (method, n_samples, level); ``theta0_deg`` is NaN there and the
     Monte Carlo errors are combined as for fully correlated angles (the same samples drive every
-    angle), i.e. averaged, an upper bound."""
+    angle), i.e. averaged, an upper bound. ``loo``: per key, one {sample id: leave-one-out
+    coverage} per angle; the one-truth columns are then those of the angle-mean coverage of the
+    same sample (ids present at every angle), else NaN."""
     keys = ["method", "n_samples", "level"]
     mean = df.groupby(keys, sort=False).mean(numeric_only=True).reset_index()
     mean["theta0_deg"] = np.nan
+    mean["calibrated_coverage_sd"] = np.nan
+    mean["calibrated_fraction_at_least"] = np.nan
+    for i, r in mean.iterrows():
+        per_angle = (loo or {}).get((r["method"], int(r["n_samples"]), float(r["level"])))
+        if not per_angle:
+            continue
+        ids = sorted(set.intersection(*(set(a) for a in per_angle)))
+        if len(ids) < 2:
+            continue
+        m = np.array([np.mean([a[s] for a in per_angle]) for s in ids])
+        mean.loc[i, "calibrated_coverage_sd"] = float(np.std(m, ddof=1))
+        mean.loc[i, "calibrated_fraction_at_least"] = float(np.mean(m >= r["theta_coverage"]))
     return mean[list(df.columns)]

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sla
 from numba import njit
 
 from crgpr.gp import GP
@@ -185,25 +186,59 @@ _SCALE_SOURCES = {
     "jackknife": "delete-a-block jackknife over contiguous blocks of the training rows: c^2 = median over "
                  "training inputs of the jackknife variance of the posterior mean / the posterior variance",
 }
+_COVARIANCE_SOURCE = ("delete-a-block jackknife covariance of the DTC coefficients (beta, v) over "
+                      "contiguous blocks of the training rows plus the prior part P^-1 Lambda P^-1 of the "
+                      "kernel weights (cluster-robust; SparsePosterior.sample(jackknife=...)); no scale")
+_COVARIANCE_SOURCE_1D = ("1D model sampled exactly and tabulated: its sigma_f, sigma_n scaled by the "
+                         "delete-a-block jackknife scale (heldout_jackknife); the jackknife covariance needs "
+                         "the sparse sampler")
 
 
 def posterior_scale(spec: GP, settings: UQSettings, Z: np.ndarray | None,
-                    full: SparsePosterior | None = None) -> tuple[float, dict[str, Any]]:
+                    full: SparsePosterior | None = None
+                    ) -> tuple[float, dict[str, Any], np.ndarray | None]:
     """The factor c of the sampled posterior's sd (``uq.posterior_scale``): 1 for 'none'; for
     'heldout_split' / 'heldout_median' / 'heldout_rms' / 'heldout_jackknife' c from
     ``crgpr.gp.sampling.heldout_block_scale`` with ``uq.heldout_blocks`` contiguous (time)
     blocks, on the inducing inputs ``Z`` when the sampler is sparse (``full``: the unscaled
-    full-data posterior there, if already built)."""
+    full-data posterior there, if already built). 'jackknife_covariance': for the sparse sampler
+    c = 1 and the leave-one-block-out coefficient vectors (B, p + M) are returned third, for
+    ``SparsePosterior.sample(..., jackknife=...)``; for a 1D tabulated model (``Z`` None) the
+    scalar jackknife scale. Returns (c, diagnostics, coefficients or None)."""
     if settings.posterior_scale == "none":
-        return 1.0, {"posterior_scale": 1.0, "posterior_scale_source": "none (fitted posterior)"}
+        return 1.0, {"posterior_scale": 1.0, "posterior_scale_source": "none (fitted posterior)"}, None
     t0 = time.perf_counter()
-    stat = settings.posterior_scale.removeprefix("heldout_")
-    sparse = settings.sampler == "sparse_pathwise"
+    covariance = settings.posterior_scale == "jackknife_covariance"
+    stat = "jackknife" if covariance else settings.posterior_scale.removeprefix("heldout_")
+    sparse = settings.sampler == "sparse_pathwise" and Z is not None
+    coeffs: list[np.ndarray] | None = [] if covariance and sparse else None
     c, info = heldout_block_scale(spec, settings.heldout_blocks, Z if sparse else None, stat,
-                                  settings.check_points, full if sparse else None)
+                                  settings.check_points, full if sparse else None, coeffs)
     info["posterior_scale_source"] = _SCALE_SOURCES[stat]
+    jk = None
+    if coeffs is not None:
+        jk = np.asarray(coeffs)
+        c = 1.0
+        info["posterior_scale"] = 1.0
+        info["posterior_covariance"] = _COVARIANCE_SOURCE
+        info["posterior_scale_source"] = "none (the jackknife covariance replaces the posterior's data part)"
+    elif covariance:
+        info["posterior_covariance"] = _COVARIANCE_SOURCE_1D
     info["posterior_scale_seconds"] = time.perf_counter() - t0
-    return c, info
+    return c, info, jk
+
+
+def centre_on_rollout(comp: CompressedSamples, sp: SparsePosterior, ra: dict[str, np.ndarray],
+                      c: float) -> None:
+    """Centre the samples ``comp`` of the (scaled by ``c``) DTC posterior ``sp`` exactly on the
+    rollout's mean model ``ra`` (dtc_w, dtc_beta): its DTC coefficients plus the zero-mean
+    posterior deviations (the two DTC solutions agree near the data but differ far from it,
+    where K_ZZ's ill-conditioned directions and the basis extrapolation dominate). In place."""
+    beta_bar, a_bar = sp.mean_coefficients()
+    # (dtc_w weights k(u, Z) of the unscaled kernel; the samples' kernel is c^2 k)
+    comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"]) / c**2
+    comp.beta = comp.beta - beta_bar + np.ravel(ra["dtc_beta"])
+    comp.__post_init__()
 
 
 def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray | None = None,
@@ -222,7 +257,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     the interpolation error of the tabulated samples against the exact samples.
     """
     if spec.dim == 1 and grid is not None:
-        c, cinfo = posterior_scale(spec, settings, None)
+        c, cinfo, _ = posterior_scale(spec, settings, None)
         tab, info = _tabulated_samples(scaled_spec(spec, c) if c != 1.0 else spec, settings, seed, grid)
         return tab, {**info, **cinfo}
     rng = np.random.default_rng(seed)
@@ -234,7 +269,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     else:
         idx, z_src = None, "the rollout model's DTC inducing inputs (dtc_Z)"
     sp0 = sparse_posterior(spec, Z) if settings.sampler == "sparse_pathwise" else None
-    c, cinfo = posterior_scale(spec, settings, Z, sp0)
+    c, cinfo, jk = posterior_scale(spec, settings, Z, sp0)
     sspec = scaled_spec(spec, c) if c != 1.0 else spec
     info: dict[str, Any] = {"model": spec.name, "n": int(n), "dim": spec.dim, "basis": spec.basis,
                             "inducing": int(Z.shape[0]), "inducing_source": z_src,
@@ -244,17 +279,11 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     info.update(cinfo)
     if settings.sampler == "sparse_pathwise":
         sp = sp0.scaled(c) if c != 1.0 else sp0  # = sparse_posterior(sspec, Z), one factorisation
-        comp = sp.sample(settings.n_samples, settings.n_features, rng)
+        comp = sp.sample(settings.n_samples, settings.n_features, rng, jk)
+        if jk is not None:
+            _jackknife_diagnostics(sp, jk, spec, settings, info, np.random.default_rng(seed + 4))
         if "dtc_w" in ra:
-            # centre the samples exactly on the rollout's mean model: its DTC coefficients plus
-            # the zero-mean posterior deviations (the two DTC solutions agree near the data but
-            # differ far from it, where K_ZZ's ill-conditioned directions and the basis
-            # extrapolation dominate; see diagnostics centre_vs_rollout_*)
-            beta_bar, a_bar = sp.mean_coefficients()
-            # (dtc_w weights k(u, Z) of the unscaled kernel; the samples' kernel is c^2 k)
-            comp.a = comp.a - a_bar + np.ravel(ra["dtc_w"]) / c**2
-            comp.beta = comp.beta - beta_bar + np.ravel(ra["dtc_beta"])
-            comp.__post_init__()
+            centre_on_rollout(comp, sp, ra, c)
             info["centred_on"] = "the rollout's DTC mean (dtc_w, dtc_beta)"
     else:
         if idx is None:  # compression needs training-point indices: match Z to rows of X
@@ -262,7 +291,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         smp = pathwise_samples(exact_posterior(sspec), settings.n_samples, settings.n_features, rng)
         comp = compress_samples(smp, idx)
     comp, rinfo = _reduced(comp, spec, settings, c, np.random.default_rng(seed + 3),
-                           sp if settings.sampler == "sparse_pathwise" else None)
+                           sp if settings.sampler == "sparse_pathwise" else None, jk)
     info.update(rinfo)
     info["sampling_s"] = time.perf_counter() - t0
     if settings.sampler == "sparse_pathwise" and "dtc_w" in ra:
@@ -313,14 +342,36 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     return comp, info
 
 
+def _jackknife_diagnostics(sp: SparsePosterior, jk: np.ndarray, spec: GP, settings: UQSettings,
+                           info: dict[str, Any], rng: np.random.Generator) -> None:
+    """The jackknife covariance against the fitted posterior: sd of the basis coefficients
+    (standardised units) and the ratio of the samples' sd to the posterior sd at training inputs."""
+    p = sp.n_basis
+    C = sp.jackknife_covariance(jk)
+    Pi = sla.solve_triangular(sp.RP, sla.solve_triangular(sp.RP, np.eye(sp.mu.shape[0]), trans="T"))
+    info["jackknife_blocks"] = int(jk.shape[0])
+    info["basis_coef_sd_jackknife"] = [float(v) for v in np.sqrt(np.diag(C)[:p])]
+    info["basis_coef_sd_posterior"] = [float(v) for v in np.sqrt(np.diag(Pi)[:p])]
+    n = spec.Xs.shape[0]
+    xr = spec.Xs[rng.choice(n, size=min(settings.check_points, n), replace=False)] * spec.x_std + spec.x_mean
+    _, v_post = sp.mean_var(xr)
+    _, v_jk = sp.mean_var(xr, jk)
+    r = np.sqrt(np.maximum(v_jk, 0.0) / np.maximum(v_post, 1e-300))
+    info["jackknife_over_posterior_sd"] = {"median": float(np.median(r)), "min": float(r.min()),
+                                           "max": float(r.max())}
+
+
 def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, rng: np.random.Generator,
-             posterior: SparsePosterior | None = None) -> tuple[CompressedSamples, dict[str, Any]]:
+             posterior: SparsePosterior | None = None, jackknife: np.ndarray | None = None
+             ) -> tuple[CompressedSamples, dict[str, Any]]:
     """The samples on a low-rank subset of their inducing inputs (``reduce_update_rank`` with
     ``uq.update_rank_tol``) if that changes no sample by more than ``uq.update_rank_max_error``
     posterior sd at ``check_points`` random training inputs and is at most half the terms;
     else unchanged. Same function draws, fewer kernel terms a rollout step. ``posterior``: the
     sampler's own (scaled) DTC posterior on the samples' inducing inputs, whose sd is the one
-    measured against (built here when not given, e.g. for compressed exact samples)."""
+    measured against (built here when not given, e.g. for compressed exact samples);
+    ``jackknife``: the samples' jackknife covariance (their sd is then that of
+    ``posterior.mean_var(x, jackknife)``)."""
     M = comp.Z.shape[0]
     info: dict[str, Any] = {"update_terms": int(M)}
     if settings.update_rank_tol <= 0:
@@ -336,7 +387,7 @@ def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, 
     # own kernel: DTC variance of the sampled GP
     if posterior is None or not np.array_equal(posterior.Z, comp.Z):
         posterior = sparse_posterior(scaled_spec(spec, c) if c != 1.0 else spec, comp.Z)
-    _, var = posterior.mean_var(xr)
+    _, var = posterior.mean_var(xr, jackknife)
     sd = np.sqrt(np.maximum(var, 1e-300))
     err = float(np.max(np.abs(red(X) - comp(X)) / sd))
     info["update_rank_pivots"] = int(r)

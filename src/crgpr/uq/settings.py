@@ -8,7 +8,8 @@ from typing import Any
 from crgpr.config import ConfigError
 
 SAMPLERS = ("sparse_pathwise", "exact_pathwise")
-POSTERIOR_SCALES = ("heldout_jackknife", "heldout_split", "heldout_median", "heldout_rms", "none")
+POSTERIOR_SCALES = ("jackknife_covariance", "heldout_jackknife", "heldout_split", "heldout_median",
+                    "heldout_rms", "none")
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,9 @@ class UQSettings:
         if s.posterior_scale not in POSTERIOR_SCALES:
             raise ConfigError(f"config key uq.posterior_scale: {s.posterior_scale!r} is not one of "
                               f"{POSTERIOR_SCALES}")
+        if s.posterior_scale == "jackknife_covariance" and s.sampler != "sparse_pathwise":
+            raise ConfigError("config key uq.posterior_scale: jackknife_covariance needs uq.sampler "
+                              "sparse_pathwise (the DTC coefficients it resamples)")
         if s.paper_n_samples > s.n_samples:
             raise ConfigError(f"config key uq.paper_n_samples: {s.paper_n_samples} > uq.n_samples "
                               f"= {s.n_samples} (the paper's row uses the first samples)")
