@@ -287,3 +287,58 @@ def test_summary_reports_indistinguishable_alternatives_apart_from_correct(tmp_p
     assert not df["correct"].any()
     assert df.loc["alt_true", "indistinguishable"] == "air_drag~viscous_drag"
     assert df["correct_up_to_indistinguishable"].tolist() == [True, False, False]
+
+
+def test_discretisation_floor_is_the_fitted_gap_and_ignores_spurious_initial_rates():
+    """The floor's discretisation part (``discretisation_error``: the model fitted to the data
+    on its grid N and step dt and on 2N, dt/2, each with its own initial state, 4/3 of the
+    difference) is the gap the nominal model actually shows on effect-free, noise-free data
+    from a simulator 4x finer in space and time (within 30 %), at most the difference of the
+    two discretisations from the exact release (the fit
+    absorbs part of it), and is not inflated by a spurious initial rate mode in the measured
+    state or in the fitted corrections it starts from: one fitted state run on both grids
+    (the estimator before disc5) inflates it several times."""
+    from crgpr.discovery.kinematics import Kinematics, marker_matrix
+    from crgpr.discovery.selection import TrajectoryFitter, discretisation_error, rod_state, run_model
+    from crgpr.physics.rod import straight_rod
+
+    pr = paper_rod(N=10)
+    n, period, dt = 121, 0.005, 1e-4
+
+    def release(p, step=dt):
+        q0 = straight_rod(math.radians(85.0), p)
+        return run_model(p, q0, np.zeros_like(q0), period, n, step)
+
+    q = release(pr.replace(N=4 * pr.N), dt / 4)[:, ::4]  # finer simulator, seen at the model's nodes
+    t = np.arange(n) * period
+    v = np.gradient(q, t, axis=0)
+    s_m = pr.s[1:]
+    spurious = (pr.s / pr.L0) ** 3  # cubic rate mode, 1 rad/s at the tip
+
+    def fitter(domega):
+        vm = v.copy()
+        vm[0, :, 2] += domega
+        kin = Kinematics(t, q, vm, np.gradient(v, t, axis=0), 1e-3, q[:, 0, 2].copy(), s_m)
+        return TrajectoryFitter(pr, kin, dt, n_modes=4, window_s=0.2)
+
+    fine = pr.replace(N=2 * pr.N)
+    release_ref = 4.0 / 3.0 * math.sqrt(np.mean((release(pr)[..., 2] @ marker_matrix(s_m, pr).T
+                                                 - release(fine, dt / 2)[..., 2] @ marker_matrix(s_m, fine).T)
+                                                ** 2))
+    f = fitter(0.0)
+    nominal = f.fit([], np.zeros(0), np.zeros(0), 20)
+    est = discretisation_error(f, dt, c0=nominal.init)
+    # the gap of the fitted nominal model is e_N - e_4N = (15/16) e_N for a second-order scheme
+    assert est == pytest.approx(nominal.rmse * 16.0 / 15.0, rel=0.3)
+    assert 0.0 < est <= release_ref
+    # a spurious rate mode: in the measured initial state, or in the corrections it starts from
+    f_sp = fitter(spurious)
+    c_sp = np.zeros(8)
+    c_sp[4:] = np.linalg.lstsq(f.P, spurious / f.w_scale, rcond=None)[0]
+    for e in (discretisation_error(f_sp, dt, c0=np.zeros(8)), discretisation_error(f, dt, c0=c_sp)):
+        assert e == pytest.approx(est, rel=0.1)
+    runs = []
+    for g, step in ((pr, dt), (fine, dt / 2)):  # one state (the spurious one) on both grids
+        q0, v0 = rod_state(np.interp(g.s, pr.s, f_sp.theta), np.interp(g.s, pr.s, f_sp.omega), np.zeros(2), g)
+        runs.append(run_model(g, q0, v0, period, n, step)[..., 2] @ marker_matrix(s_m, g).T)
+    assert 4.0 / 3.0 * math.sqrt(np.mean((runs[0] - runs[1]) ** 2)) > 3.0 * est
