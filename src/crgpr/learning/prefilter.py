@@ -66,6 +66,7 @@ class PrefilterSettings:
     hyper_nodes: tuple[float, ...]  # fractions of N
     hyper_points: int
     n_restarts: int
+    ell_min_over_spacing: float  # lengthscale >= this x the spacing of the LML samples
 
     @classmethod
     def from_config(cls, cfg: dict[str, Any]) -> PrefilterSettings:
@@ -75,7 +76,8 @@ class PrefilterSettings:
         return cls(stride=int(c["stride"]), n_t_out=int(c["n_t_out"]), kernel=c["kernel"],
                    basis=c["basis"], noise_var_min=float(c["noise_var_min"]),
                    hyper_nodes=tuple(float(v) for v in c["hyper_nodes"]),
-                   hyper_points=int(c["hyper_points"]), n_restarts=int(c["n_restarts"]))
+                   hyper_points=int(c["hyper_points"]), n_restarts=int(c["n_restarts"]),
+                   ell_min_over_spacing=float(c["ell_min_over_spacing"]))
 
 
 def output_indices(n_rec: int, n_out: int) -> np.ndarray:
@@ -173,6 +175,12 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
     hyper_nodes = sorted({min(N, max(1, round(f * N))) for f in settings.hyper_nodes})
     h_idx = np.unique(np.linspace(0, fit_idx.size - 1, min(settings.hyper_points, fit_idx.size))
                       .round().astype(int))
+    # a lengthscale shorter than the spacing of the samples that set it is not determined by
+    # them: the LML can prefer such a white-noise fit, whose derivatives are noise (80 deg,
+    # p_x: 0.00058 s at 0.01 s spacing, targets 170x too large); bound it in standardised time
+    t_h = t_fit[h_idx]
+    ell_lo = settings.ell_min_over_spacing * float(np.median(np.diff(t_h))) / float(np.std(t_h))
+    ell_bounds = (np.array([max(ell_lo, 1e-3)]), np.array([1e2]))
     zs = np.empty((out_idx.size, n_nodes, 6))
     d1s = np.empty_like(zs)
     d2s = np.empty_like(zs)
@@ -181,10 +189,19 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
         t0 = time.perf_counter()
         Yfit = z[fit_idx, :, k]
         # shared hyperparameters from the joint LML of the representative nodes
-        hgp = fit_gp(t_fit[h_idx], Yfit[h_idx][:, hyper_nodes], kernel=settings.kernel,
-                     basis=settings.basis, noise_var_min_std=settings.noise_var_min,
-                     n_restarts=settings.n_restarts, seed=seed + k,
-                     init={"lengthscales": 0.2, "sigma_f": 1.0, "sigma_n": 1e-3})
+        # (the lengthscale bound enters only where the unconstrained optimum violates it: an
+        # interior optimum is the same, the optimiser's path, and so the last digits, are not)
+        for bounds in (None, ell_bounds):
+            hgp = fit_gp(t_fit[h_idx], Yfit[h_idx][:, hyper_nodes], kernel=settings.kernel,
+                         basis=settings.basis, noise_var_min_std=settings.noise_var_min,
+                         n_restarts=settings.n_restarts, seed=seed + k, ell_bounds=bounds,
+                         init={"lengthscales": 0.2, "sigma_f": 1.0, "sigma_n": 1e-3})
+            bounded = bounds is not None
+            if bounded or hgp.lengthscales[0] >= ell_bounds[0][0]:
+                break
+            log.warning("prefilter gp %s: LML lengthscale %.3g s is below the sample spacing bound "
+                        "%.3g s (prefilter.ell_min_over_spacing): refitted with the bound", name,
+                        float(hgp.lengthscales[0] * hgp.x_scale[0]), float(ell_bounds[0][0] * np.std(t_h)))
         fixed = {"sigma_f": hgp.sigma_f, "lengthscales": hgp.lengthscales, "sigma_n": hgp.sigma_n}
         gp = fit_gp(t_fit, Yfit, kernel=settings.kernel, basis=settings.basis,
                     noise_var_min_std=settings.noise_var_min, fixed=fixed)
@@ -193,7 +210,7 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
         hypers[name] = {"sigma_f_std": hgp.sigma_f,
                         "lengthscale_s": float(hgp.lengthscales[0] * hgp.x_scale[0]),
                         "lengthscale_std": float(hgp.lengthscales[0]), "sigma_n_std": hgp.sigma_n,
-                        "lml_hyper_nodes": hgp.lml, "n_fit": int(t_fit.size),
+                        "lml_hyper_nodes": hgp.lml, "n_fit": int(t_fit.size), "lengthscale_bounded": bounded,
                         "hyper_nodes": hyper_nodes, "hyper_points": int(h_idx.size),
                         "seconds": time.perf_counter() - t0}
         # the clamp: base node stays exactly at its recorded value
@@ -205,6 +222,7 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
     meta = {"method": "gp", "kernel": settings.kernel, "basis": settings.basis, "stride": settings.stride,
             "n_fit": int(t_fit.size), "n_t_out": int(out_idx.size),
             "noise_var_min_std": settings.noise_var_min,
+            "lengthscale_min_s": float(ell_bounds[0][0] * np.std(t_h)),
             "hyperparameters": hypers,
             "hyperparameter_sharing": "one set per state component from the joint LML of hyper_nodes"}
     return _frame(traj, t_out, zs, d1s, d2s), meta
