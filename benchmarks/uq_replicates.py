@@ -15,15 +15,23 @@ correlation between replicates of the mean models' theta error (mean rollout - t
 time, node and angle) so that this can be checked: near 1, the replicates are one truth again.
 
     python benchmarks/uq_replicates.py --method cr_gpr_objective --out benchmarks/uq/replicates.csv \
-        RUN_DIR [RUN_DIR ...]
+        --make 80 75 70 --workdir /tmp/rep .
 
-RUN_DIR: a workflow directory with results/uq/{method}/{angle}.parquet and
+RUN_DIR (positional, e.g. ``.`` for the main run): a workflow directory with
+results/uq/{method}/{angle}.parquet, results/rollouts/{method}/{angle}.parquet and
 results/ground_truth/{angle}.parquet (the config's ``uq.angles_deg``, ``uq.levels``).
+``--make DEG ...`` first builds one replicate per training angle under ``--workdir``/DEG: this
+config with ``angles.train_deg`` = DEG (also in place of the training angle in
+``angles.pinn_train_deg``) and ``uq.methods`` = [method], run by Snakemake to
+results/tables/uq_coverage.csv (about 7 min per replicate on the 2 cores); then it is added to the
+RUN_DIRs. Column ``mean_error_corr_first``: that correlation against the first RUN_DIR.
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -72,9 +80,29 @@ def mean_error(run: Path, method: str, angles: list[float]) -> np.ndarray:
     return np.concatenate(out)
 
 
+def make_replicate(config: Path, method: str, deg: int, workdir: Path) -> Path:
+    """One replicate workflow directory: the config with ``angles.train_deg`` = deg, run by
+    Snakemake to uq_coverage.csv (Snakemake skips what is already up to date)."""
+    cfg = yaml.safe_load(config.read_text())
+    train = cfg["angles"]["train_deg"]
+    cfg["angles"]["train_deg"] = deg
+    cfg["angles"]["pinn_train_deg"] = [deg if x == train else x for x in cfg["angles"]["pinn_train_deg"]]
+    cfg["uq"]["methods"] = [method]
+    run = workdir / str(deg)
+    run.mkdir(parents=True, exist_ok=True)
+    (run / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    snakefile = Path(__file__).resolve().parents[1] / "Snakefile"
+    subprocess.run([sys.executable, "-m", "snakemake", "-j2", "--snakefile", str(snakefile),
+                    "--configfile", str(run / "config.yaml"), "-d", str(run),
+                    "results/tables/uq_coverage.csv"], check=True)
+    return run
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("runs", nargs="+", type=Path)
+    ap.add_argument("runs", nargs="*", type=Path)
+    ap.add_argument("--make", nargs="*", type=int, default=[], metavar="DEG")
+    ap.add_argument("--workdir", type=Path, default=Path("replicates"))
     ap.add_argument("--method", default="cr_gpr_objective")
     ap.add_argument("--config", type=Path, default=Path("config.yaml"))
     ap.add_argument("--out", type=Path, required=True)
@@ -85,8 +113,13 @@ def main() -> None:
     angles = [float(x) for x in uq["angles_deg"]]
     levels = [float(x) for x in uq["levels"]]
     rng = np.random.default_rng(a.seed)
+    a.runs = list(a.runs) + [make_replicate(a.config, a.method, d, a.workdir) for d in a.make]
+    if len(a.runs) < 2:
+        raise SystemExit("uq_replicates: give at least two RUN_DIRs or --make angles")
+    err = np.array([mean_error(run, a.method, angles) for run in a.runs])
+    corr = np.corrcoef(err)
     rows, per = [], []
-    for run in a.runs:
+    for i, run in enumerate(a.runs):
         train = yaml.safe_load((run / "config.yaml").read_text())["angles"]["train_deg"] \
             if (run / "config.yaml").exists() else None
         obs, loo, n_s = replicate(run, a.method, angles, levels)
@@ -96,7 +129,9 @@ def main() -> None:
                          "n_samples": n_s, "theta_coverage": obs[lv],
                          "expected_coverage": expected_coverage(n_s, lv),
                          "calibrated_coverage_sd": float(np.std(loo[lv], ddof=1)),
-                         "calibrated_fraction_at_least": float(np.mean(loo[lv] >= obs[lv]))})
+                         "calibrated_fraction_at_least": float(np.mean(loo[lv] >= obs[lv])),
+                         "rms_mean_error": float(np.sqrt(np.mean(err[i] ** 2))),
+                         "mean_error_corr_first": float(corr[0, i])})
     for lv in levels:
         pooled = float(np.mean([o[lv] for o, _ in per]))
         ref = np.mean([loo_lv[lv][rng.integers(0, loo_lv[lv].size, a.draws)] for _, loo_lv in per],
@@ -108,9 +143,8 @@ def main() -> None:
                      "calibrated_coverage_sd": float(np.std(ref)),
                      "calibrated_fraction_at_least": float(np.mean(ref >= pooled)),
                      "loo_reference_mean": float(np.mean(ref))})
-    err = np.array([mean_error(run, a.method, angles) for run in a.runs])
     print("correlation of the mean models' theta errors between replicates:")
-    print(np.array2string(np.corrcoef(err), precision=2))
+    print(np.array2string(corr, precision=2))
     print("rms theta error of the mean models:", np.array2string(np.sqrt(np.mean(err**2, axis=1)),
                                                                  precision=6))
     df = pd.DataFrame(rows)
