@@ -20,9 +20,9 @@ configfile: "config.yaml"
 
 validate(config, "src/crgpr/schemas/config.schema.yaml")
 
-from crgpr.config import check_config  # noqa: E402
+from crgpr.config import validate_config  # noqa: E402
 
-check_config(config, "config")
+validate_config(config, "config")  # also what the schema cannot say: whole-number integers, physics
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"

@@ -55,6 +55,8 @@ def test_default_config_is_the_paper():
         ({"rod": {"stiffness": 1.0}}, "rod.stiffness"),
         ({"simulation": {"dt_s": 1.0e-3}}, "simulation.dt_s"),
         ({"angles": {"train_deg": "eighty-five"}}, "angles.train_deg"),
+        ({"angles": {"train_deg": 80.0, "pinn_train_deg": [30, 80.0]}}, "angles.train_deg"),
+        ({"uq": {"n_samples": 16.0}}, "uq.n_samples"),
         ({"angles": {"test_deg": [60, 85]}}, "angles.test_deg"),
         ({"simulation": {"record_every": 0}}, "simulation.record_every"),
         ({"typo_section": {}}, "typo_section"),

@@ -54,20 +54,31 @@ def _dotted(path: Any) -> str:
 
 
 @functools.cache
-def _validator() -> jsonschema.Draft202012Validator:
+def _validator() -> jsonschema.protocols.Validator:
     """Validator of the main schema; relative ``$ref``s (stage sections) load from its folder."""
     from referencing import Registry, Resource
+    from referencing.jsonschema import DRAFT202012
 
     base = schema_path().parent
 
     @functools.cache
     def retrieve(uri: str) -> Resource:  # cached: the registry does not keep what it retrieves
         rel = uri.split("schemas/", 1)[-1] if "schemas/" in uri else uri
-        return Resource.from_contents(yaml.safe_load((base / rel).read_text()))
+        contents = yaml.safe_load((base / rel).read_text())
+        contents.pop("$schema", None)  # else jsonschema switches to its own class for the section
+        return Resource(contents=contents, specification=DRAFT202012)
 
     main = schema()
     main["$id"] = base.joinpath("config.schema.yaml").as_uri()
-    return jsonschema.Draft202012Validator(main, registry=Registry(retrieve=retrieve))
+    return _StrictIntegers(main, registry=Registry(retrieve=retrieve))
+
+
+# JSON schema counts 80.0 as an integer; here an integer is written as one: angles name result
+# files ({angle}.parquet), and 80.0 would name 80.0.parquet that no rule makes.
+_StrictIntegers = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
+        "integer", lambda _checker, x: isinstance(x, int) and not isinstance(x, bool)))
 
 
 def check_plain(value: Any, source: str = "config", path: tuple[Any, ...] = ()) -> None:
