@@ -45,10 +45,11 @@ from crgpr.uq.rollout import UQ_COLUMNS
 
 
 def replicate(run: Path, method: str, angles: list[float], levels: list[float]
-              ) -> tuple[dict[float, float], dict[float, np.ndarray], int]:
+              ) -> tuple[dict[float, float], dict[float, np.ndarray], int, dict[float, float]]:
     """(observed angle-mean theta coverage per level, leave-one-out angle-mean coverages per
-    level (S,), S) of one workflow directory."""
+    level (S,), S, angle-mean theta band width per level [rad]) of one workflow directory."""
     obs: dict[float, list[float]] = {lv: [] for lv in levels}
+    width: dict[float, list[float]] = {lv: [] for lv in levels}
     loo: dict[float, list[np.ndarray]] = {lv: [] for lv in levels}
     n_s = None
     for a in angles:
@@ -62,10 +63,13 @@ def replicate(run: Path, method: str, angles: list[float], levels: list[float]
                              "diverged); the leave-one-out needs the same samples at every angle")
         n_s = arr.shape[0]
         for lv in levels:  # the rule's own coverage (uq_coverage) and its leave-one-out reference
-            obs[lv].append(_coverages(arr, g, lv)["theta_coverage"])
+            cov = _coverages(arr, g, lv)
+            obs[lv].append(cov["theta_coverage"])
+            width[lv].append(cov["theta_band_width_mean"])
             loo[lv].append(loo_coverages(arr, lv))
     return ({lv: float(np.mean(v)) for lv, v in obs.items()},
-            {lv: np.mean(v, axis=0) for lv, v in loo.items()}, int(n_s))
+            {lv: np.mean(v, axis=0) for lv, v in loo.items()}, int(n_s),
+            {lv: float(np.mean(v)) for lv, v in width.items()})
 
 
 def mean_error(run: Path, method: str, angles: list[float]) -> np.ndarray:
@@ -122,7 +126,7 @@ def main() -> None:
     for i, run in enumerate(a.runs):
         train = yaml.safe_load((run / "config.yaml").read_text())["angles"]["train_deg"] \
             if (run / "config.yaml").exists() else None
-        obs, loo, n_s = replicate(run, a.method, angles, levels)
+        obs, loo, n_s, width = replicate(run, a.method, angles, levels)
         per.append((obs, loo))
         for lv in levels:
             rows.append({"method": a.method, "train_deg": train, "run": str(run), "level": lv,
@@ -130,7 +134,8 @@ def main() -> None:
                          "expected_coverage": expected_coverage(n_s, lv),
                          "calibrated_coverage_sd": float(np.std(loo[lv], ddof=1)),
                          "calibrated_fraction_at_least": float(np.mean(loo[lv] >= obs[lv])),
-                         "rms_mean_error": float(np.sqrt(np.mean(err[i] ** 2))),
+                         "theta_band_width_mean": float(f"{width[lv]:.4g}"),
+                         "rms_mean_error": float(f"{np.sqrt(np.mean(err[i] ** 2)):.4g}"),
                          "mean_error_corr_first": float(corr[0, i])})
     for lv in levels:
         pooled = float(np.mean([o[lv] for o, _ in per]))
@@ -149,7 +154,8 @@ def main() -> None:
                                                                  precision=6))
     df = pd.DataFrame(rows)
     a.out.parent.mkdir(parents=True, exist_ok=True)
-    df.round(5).to_csv(a.out, index=False)
+    df.round({c: 5 for c in df.columns if c not in ("theta_band_width_mean", "rms_mean_error")}).to_csv(
+        a.out, index=False)
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(df.drop(columns="run").round(4).to_string(index=False))
 
