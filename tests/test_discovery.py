@@ -455,6 +455,22 @@ def test_two_effects_are_named_on_the_configs_record(record_runs):
         assert named[k] == pytest.approx(v, rel=0.3)
 
 
+def test_three_effects_are_named_on_the_configs_record(record_runs):
+    """A tip mass, viscous drag and a 30 % stiffer rod at once on the workflow's 1 s record: three
+    effects named and no fourth, each either the hidden one or its listed indistinguishable
+    alternative (air_drag ~ viscous_drag: both dissipate in R; the record cannot tell them
+    apart), and the two that are told apart with their coefficients."""
+    truth, res = record_runs("three_effects")
+    assert res["verdict"] == "effect_found", res["best_attempt"]
+    named = {e["name"]: e["coefficient"] for e in res["effects"]}
+    assert len(named) == len(truth["effects"]) == 3
+    swaps = {(a["named"], a["alternative"]) for a in res["indistinguishable_alternatives"]}
+    for name in set(named) - set(truth["effects"]):
+        assert any((name, alt) in swaps for alt in truth["effects"]), (name, swaps)
+    for k in ("tip_mass", "stiffness_scale"):
+        assert named[k] == pytest.approx(truth["effects"][k], rel=0.3)
+
+
 def test_localized_stiffness_defect_is_unexplained_and_located_on_the_configs_record(record_runs):
     """A local defect (no library candidate describes it) is `unexplained` with nothing named,
     and located along s by the per-segment stiffness error, with its depth."""
