@@ -1,7 +1,7 @@
 """Gaussian-process regression (paper Sec. III-B steps 2-3, Table II; R&W 2006 Sec. 2.2, 2.7).
 
 Public API:
-* ``GP``, ``fit_gp``: exact GP with explicit basis, marginal-likelihood fit (``_gpr``);
+* ``GP``, ``fit_gp``, ``ELL_BOUNDS_STD``: exact GP with explicit basis, marginal-likelihood fit (``_gpr``);
 * ``smooth_series``: a 1-D Matern-5/2 smoother with analytic derivatives (the prefilter);
 * ``kernel_matrix``, ``basis_matrix_std``, ``GPError``;
 * evaluators of the posterior mean (``evaluators``): ``KernelMean`` (the exact mean over all n
@@ -14,6 +14,7 @@ Public API:
 
 from crgpr.gp._gpr import (
     BASES,
+    ELL_BOUNDS_STD,
     GP,
     KERNELS,
     GPError,
@@ -26,7 +27,8 @@ from crgpr.gp.evaluators import KernelMean, Table1D, cutoff_radius, exact_weight
 from crgpr.gp.sparse import dtc_fit, select_inducing
 
 __all__ = [
-    "BASES", "GP", "GPError", "KERNELS", "KernelMean", "Table1D", "basis_matrix_std", "cutoff_radius",
+    "BASES", "ELL_BOUNDS_STD", "GP", "GPError", "KERNELS", "KernelMean", "Table1D", "basis_matrix_std",
+    "cutoff_radius",
     "dtc_fit", "exact_weights", "fit_gp", "kernel_matrix", "load_evaluator", "load_model", "select_inducing",
     "smooth_series",
 ]

@@ -511,6 +511,9 @@ def _neg_lml(theta: np.ndarray, kernel: str, ard: bool, U: np.ndarray, V: np.nda
     return -lml, -np.asarray(g)
 
 
+ELL_BOUNDS_STD: tuple[float, float] = (1e-3, 1e2)  # fit_gp's default lengthscale box, standardised units
+
+
 def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none", ard: bool = False,
            sigma_n_min: float | None = None, noise_var_min_std: float | None = None,
            n_restarts: int = 3, seed: int = 0, hyper_subset: int | None = None,
@@ -587,7 +590,7 @@ def fit_gp(X: np.ndarray, Y: np.ndarray, kernel: str = "se", basis: str = "none"
         # lengthscales in [1e-3, 1e2]; wider bounds only buy ill-conditioning
         sf_lo, sf_hi = sigma_f_bounds if sigma_f_bounds is not None else (1e-2, 1e1)
         if ell_bounds is None:
-            ell_b = [(math.log(1e-3), math.log(1e2))] * n_ell
+            ell_b = [tuple(math.log(b) for b in ELL_BOUNDS_STD)] * n_ell
         else:
             el_lo = np.broadcast_to(np.asarray(ell_bounds[0], float), (d,))
             el_hi = np.broadcast_to(np.asarray(ell_bounds[1], float), (d,))

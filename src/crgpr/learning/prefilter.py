@@ -30,6 +30,7 @@ non-uniformly sampled time series (used by the camera-data / missing-physics wor
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass
@@ -40,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import ConfigError
-from crgpr.gp import fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
+from crgpr.gp import ELL_BOUNDS_STD, fit_gp, smooth_series  # noqa: F401  (smooth_series is part of this module's API)
 from crgpr.io import frame_to_grid, read_parquet
 from crgpr.physics.rod import STATE_NAMES
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, Trajectory
@@ -180,7 +181,7 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
     # p_x: 0.00058 s at 0.01 s spacing, targets 170x too large); bound it in standardised time
     t_h = t_fit[h_idx]
     ell_lo = settings.ell_min_over_spacing * float(np.median(np.diff(t_h))) / float(np.std(t_h))
-    ell_bounds = (np.array([max(ell_lo, 1e-3)]), np.array([1e2]))
+    ell_bounds = (np.array([max(ell_lo, ELL_BOUNDS_STD[0])]), np.array([ELL_BOUNDS_STD[1]]))
     zs = np.empty((out_idx.size, n_nodes, 6))
     d1s = np.empty_like(zs)
     d2s = np.empty_like(zs)
@@ -191,17 +192,18 @@ def gp_prefilter(traj: Trajectory, settings: PrefilterSettings, seed: int = 0
         # shared hyperparameters from the joint LML of the representative nodes
         # (the lengthscale bound enters only where the unconstrained optimum violates it: an
         # interior optimum is the same, the optimiser's path, and so the last digits, are not)
-        for bounds in (None, ell_bounds):
-            hgp = fit_gp(t_fit[h_idx], Yfit[h_idx][:, hyper_nodes], kernel=settings.kernel,
-                         basis=settings.basis, noise_var_min_std=settings.noise_var_min,
-                         n_restarts=settings.n_restarts, seed=seed + k, ell_bounds=bounds,
-                         init={"lengthscales": 0.2, "sigma_f": 1.0, "sigma_n": 1e-3})
-            bounded = bounds is not None
-            if bounded or hgp.lengthscales[0] >= ell_bounds[0][0]:
-                break
+        hyper_fit = functools.partial(fit_gp, t_fit[h_idx], Yfit[h_idx][:, hyper_nodes],
+                                      kernel=settings.kernel, basis=settings.basis,
+                                      noise_var_min_std=settings.noise_var_min,
+                                      n_restarts=settings.n_restarts, seed=seed + k,
+                                      init={"lengthscales": 0.2, "sigma_f": 1.0, "sigma_n": 1e-3})
+        hgp = hyper_fit()
+        bounded = bool(hgp.lengthscales[0] < ell_bounds[0][0])
+        if bounded:
             log.warning("prefilter gp %s: LML lengthscale %.3g s is below the sample spacing bound "
                         "%.3g s (prefilter.ell_min_over_spacing): refitted with the bound", name,
                         float(hgp.lengthscales[0] * hgp.x_scale[0]), float(ell_bounds[0][0] * np.std(t_h)))
+            hgp = hyper_fit(ell_bounds=ell_bounds)
         fixed = {"sigma_f": hgp.sigma_f, "lengthscales": hgp.lengthscales, "sigma_n": hgp.sigma_n}
         gp = fit_gp(t_fit, Yfit, kernel=settings.kernel, basis=settings.basis,
                     noise_var_min_std=settings.noise_var_min, fixed=fixed)
