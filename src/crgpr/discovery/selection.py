@@ -475,14 +475,12 @@ class TrajectoryFitter:
 
     def __init__(self, params: RodParams, kin: Kinematics, dt_max: float, n_modes: int,
                  window_s: float):
-        self.params, self.kin, self.dt_max, self.n_modes = params, kin, dt_max, n_modes
-        self.M = marker_matrix(kin.s_markers, params)  # the model is compared at the markers
+        self.kin, self.dt_max, self.n_modes = kin, dt_max, n_modes
+        self._set_grid(params)
         self.theta_m = kin.q[..., 2] @ self.M.T
         self.period = float(np.median(np.diff(kin.t)))
         self.n = len(kin.t)
         self.theta, self.omega, self.base = kin.q[0, :, 2], kin.v[0, :, 2], kin.q[0, 0, :2]
-        xs = 2.0 * params.s / params.L0 - 1.0
-        self.P = np.stack([np.polynomial.legendre.Legendre.basis(k)(xs) for k in range(n_modes)], axis=1)
         self.w_scale = 1.0 / max(window_s, 1e-3)  # rate corrections in rad per window
         self.window = int(min(self.n, max(5, round(window_s / self.period) + 1)))
         self.c_start = self._window_fit()
@@ -591,16 +589,23 @@ class TrajectoryFitter:
                             max_nfev=10 * (2 * self.n_modes + 1))
         return sol.x
 
-    def on_grid(self, grid: RodParams, theta: np.ndarray, omega: np.ndarray) -> TrajectoryFitter:
+    def on_grid(self, grid: RodParams, theta: np.ndarray, omega: np.ndarray,
+                dt_max: float) -> TrajectoryFitter:
         """The same fit (markers, measured theta, time grid, correction modes) of the rod
-        ``grid`` (another N) from the initial nodal angles and rates ``theta``, ``omega``
-        (N_grid + 1) instead of the measured ones."""
+        ``grid`` (another N) with time step at most ``dt_max``, from the initial nodal angles
+        and rates ``theta``, ``omega`` (N_grid + 1) instead of the measured ones."""
         g = copy.copy(self)
-        g.params, g.theta, g.omega = grid, np.asarray(theta, float), np.asarray(omega, float)
-        g.M = marker_matrix(self.kin.s_markers, grid)
-        xs = 2.0 * grid.s / grid.L0 - 1.0
-        g.P = np.stack([np.polynomial.legendre.Legendre.basis(k)(xs) for k in range(self.n_modes)], axis=1)
+        g._set_grid(grid)
+        g.theta, g.omega, g.dt_max = np.asarray(theta, float), np.asarray(omega, float), dt_max
         return g
+
+    def _set_grid(self, params: RodParams) -> None:
+        """The rod and what depends on its grid: the marker matrix (the model is compared at
+        the markers) and the Legendre modes of the initial-state corrections."""
+        self.params = params
+        self.M = marker_matrix(self.kin.s_markers, params)
+        xs = 2.0 * params.s / params.L0 - 1.0
+        self.P = np.stack([np.polynomial.legendre.Legendre.basis(k)(xs) for k in range(self.n_modes)], axis=1)
 
     def fit(self, names: list[str], x0: np.ndarray, x_std: np.ndarray, max_nfev: int,
             rounds: int = 1) -> TrajectoryFit:
@@ -745,8 +750,7 @@ def discretisation_error(fitter: TrajectoryFitter, dt_max: float, names: tuple[s
                                 fitter.n).dt
     for n_grid, dt_grid in ((fitter.params.N, dt_max), (2 * fitter.params.N, 0.5 * dt_model)):
         grid = fitter.params.replace(N=n_grid)
-        g = fitter.on_grid(grid, th(grid.s), om(grid.s))
-        g.dt_max = dt_grid
+        g = fitter.on_grid(grid, th(grid.s), om(grid.s), dt_grid)
         try:
             c = g._window_fit(list(names), coef, c0, n=fitter.n)
             runs.append(g.simulate(list(names), coef, c)[..., 2] @ g.M.T)
