@@ -40,7 +40,7 @@ import yaml
 
 from crgpr.io import read_parquet
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
-from crgpr.uq.coverage import _coverages, expected_coverage, loo_coverages, sample_arrays, truth_arrays
+from crgpr.uq.coverage import coverage_rows, expected_coverage, sample_arrays, truth_arrays
 from crgpr.uq.rollout import UQ_COLUMNS
 
 
@@ -48,9 +48,7 @@ def replicate(run: Path, method: str, angles: list[float], levels: list[float]
               ) -> tuple[dict[float, float], dict[float, np.ndarray], int, dict[float, float]]:
     """(observed angle-mean theta coverage per level, leave-one-out angle-mean coverages per
     level (S,), S, angle-mean theta band width per level [rad]) of one workflow directory."""
-    obs: dict[float, list[float]] = {lv: [] for lv in levels}
-    width: dict[float, list[float]] = {lv: [] for lv in levels}
-    loo: dict[float, list[np.ndarray]] = {lv: [] for lv in levels}
+    rows: list[dict] = []
     n_s = None
     for a in angles:
         df = read_parquet(run / f"results/uq/{method}/{a:g}.parquet", required=UQ_COLUMNS)
@@ -62,11 +60,11 @@ def replicate(run: Path, method: str, angles: list[float], levels: list[float]
             raise SystemExit(f"{run}: {arr.shape[0]} samples at {a:g} deg, {n_s} elsewhere (a sample "
                              "diverged); the leave-one-out needs the same samples at every angle")
         n_s = arr.shape[0]
-        for lv in levels:  # the rule's own coverage (uq_coverage) and its leave-one-out reference
-            cov = _coverages(arr, g, lv)
-            obs[lv].append(cov["theta_coverage"])
-            width[lv].append(cov["theta_band_width_mean"])
-            loo[lv].append(loo_coverages(arr, lv))
+        rows += coverage_rows(arr, g, levels, [n_s])  # the rule's own rows, with their "loo"
+    by_level = {lv: [r for r in rows if r["level"] == lv] for lv in levels}
+    obs = {lv: [r["theta_coverage"] for r in rs] for lv, rs in by_level.items()}
+    loo = {lv: [r["loo"] for r in rs] for lv, rs in by_level.items()}
+    width = {lv: [r["theta_band_width_mean"] for r in rs] for lv, rs in by_level.items()}
     return ({lv: float(np.mean(v)) for lv, v in obs.items()},
             {lv: np.mean(v, axis=0) for lv, v in loo.items()}, int(n_s),
             {lv: float(np.mean(v)) for lv, v in width.items()})
