@@ -7,6 +7,8 @@ the momentum maps p / (rho A), p / (rho I) of ``learning.oracle``). Prints RMSE(
 ``results/ground_truth/{angle}.parquet`` (nodes 1..N, every record).
 
     python benchmarks/uq_objective_ablation.py 125 learned oracle_m oracle_mom oracle_n
+    python benchmarks/uq_objective_ablation.py --models results/camera/models/main/1mm_gp_objective \
+        125 learned oracle_m oracle_mom      # a `crgpr learn` directory (cr_gpr_objective_camera)
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import time
 
 import numpy as np
 
+from crgpr.commands.learn import load_learned
 from crgpr.config import load_config, rod_params, sim_settings
 from crgpr.io import read_parquet
 from crgpr.learning.learned import LearnedRod, rollout
@@ -39,17 +42,22 @@ class ObjectiveLaw:
 
 def main() -> None:
     cfg = load_config("config.yaml")
-    P = rod_params(cfg)
     sim = sim_settings(cfg)
-    base = LearnedRod.from_dir("results/models/gp", "objective", P)
+    args = sys.argv[1:]
+    if args[0] == "--models":
+        base, _ = load_learned(args[1])
+        P, args = base.params, args[2:]
+    else:
+        P = rod_params(cfg)
+        base = LearnedRod.from_dir("results/models/gp", "objective", P)
     orc = oracle_components(P)
-    angle = float(sys.argv[1])
+    angle = float(args[0])
     gt = read_parquet(f"results/ground_truth/{int(angle)}.parquet").sort_values(["t", "node"])
     th_gt = gt["theta"].to_numpy().reshape(-1, gt["node"].nunique())
     variants = {"learned": {}, "oracle_m": {"obj_m": ObjectiveLaw("m", P)},
                 "oracle_n": {"obj_n1": ObjectiveLaw("n1", P), "obj_n2": ObjectiveLaw("n2", P)},
                 "oracle_mom": {m: orc[m] for m in ("dH_dp_x", "dH_dp_y", "dH_dp_theta")}}
-    for name in sys.argv[2:]:
+    for name in args[1:]:
         comps = dict(base.components)
         comps.update(variants[name])
         t0 = time.perf_counter()

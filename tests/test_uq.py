@@ -36,7 +36,8 @@ SETTINGS = UQSettings(methods=("cr_gpr",), sampler="sparse_pathwise", n_samples=
                       n_features=64, inducing=60, levels=LEVELS, angles_deg=(125,), figure_angle_deg=125,
                       figure_level=95.0, figure_time_fractions=(0.5, 1.0), exact_check_max_n=500,
                       check_points=100, posterior_scale="none", heldout_blocks=5,
-                      kernel_tol=0.0, update_rank_tol=1.0e-14, update_rank_max_error=1.0e-4)
+                      kernel_tol=0.0, update_rank_tol=1.0e-14, update_rank_max_error=1.0e-4,
+                      tabulated_exact_max_n=4000)
 
 
 # ---------------------------------------------------------------------------------------------

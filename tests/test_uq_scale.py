@@ -27,7 +27,8 @@ SETTINGS = UQSettings(methods=("m",), sampler="sparse_pathwise", n_samples=6, pa
                       n_features=64, inducing=40, levels=(50.0, 95.0), angles_deg=(125,),
                       figure_angle_deg=125, figure_level=95.0, figure_time_fractions=(1.0,),
                       exact_check_max_n=300, check_points=50, posterior_scale="heldout_rms",
-                      heldout_blocks=8, kernel_tol=0.0, update_rank_tol=0.0, update_rank_max_error=1.0e-4)
+                      heldout_blocks=8, kernel_tol=0.0, update_rank_tol=0.0, update_rank_max_error=1.0e-4,
+                      tabulated_exact_max_n=4000)
 
 
 def _trajectory_gp(n: int, seed: int, bias: float, basis: str = "linear") -> GP:

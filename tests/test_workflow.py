@@ -98,6 +98,9 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     assert set(studies["method"]) == {"cr_gpr_paper_hyp", "cr_gpr_collocated"}
     assert set(studies["theta0_deg"]) == {60.0, 125.0}
     tables = res / "tables"
+    cov = pd.read_csv(tables / "uq_coverage.csv")
+    assert set(cov["method"]) == {"cr_gpr", "cr_gpr_objective", "cr_gpr_objective_camera"}
+    assert (res / "figures" / "uq_band_cr_gpr_objective_camera_125.png").exists()
     for name, cols in {
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
         "table4_ablation.csv": [], "baselines.csv": [],

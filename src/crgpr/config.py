@@ -29,6 +29,9 @@ class ConfigError(ValueError):
         super().__init__(" ".join(str(message).split()))
 
 
+# the method learned by `crgpr learn` from the camera version of the training run (section camera)
+CAMERA_METHOD = "cr_gpr_objective_camera"
+
 def schema() -> dict[str, Any]:
     """The JSON schema of config.yaml (also used by the Snakefile's ``validate``)."""
     text = resources.files("crgpr").joinpath("schemas/config.schema.yaml").read_text()
@@ -176,9 +179,11 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     if "uq" in cfg:
         from crgpr.uq.settings import UQSettings
 
-        unknown = sorted(set(cfg["uq"]["methods"]) - set(cfg["rollouts"]["methods"]))
+        known = set(cfg["rollouts"]["methods"]) | ({CAMERA_METHOD} if "camera" in cfg else set())
+        unknown = sorted(set(cfg["uq"]["methods"]) - known)
         if unknown:
-            raise ConfigError(f"{source}: uq.methods {unknown} are not keys of rollouts.methods")
+            raise ConfigError(f"{source}: uq.methods {unknown} are neither keys of rollouts.methods nor "
+                              f"{CAMERA_METHOD!r} (the model `crgpr learn` trains from the camera data)")
         UQSettings.from_section(cfg["uq"])
 
 

@@ -9,8 +9,11 @@ CAM = config["camera"]
 CAM_ABL = CAM["ablation"]
 CAM_TRAIN = config["angles"]["train_deg"]
 CAM_NOISE = f"{CAM['data']['noise_std_m'] * 1e3:g}"
-CAM_METHOD = "cr_gpr_objective_camera"
+from crgpr.config import CAMERA_METHOD as CAM_METHOD
+
 ROLLOUT_METHODS.append(CAM_METHOD)
+CAM_MODEL_DIR = f"{RESULTS}/camera/models/main/{CAM_NOISE}mm_{CAM['method']['prefilter']}_{CAM['method']['features']}"
+LEARNED_MODEL_DIRS[CAM_METHOD] = CAM_MODEL_DIR  # a `crgpr learn` directory: uq.smk samples it as a whole
 _CAM_CELLS = [(f"{n:g}", p, f) for n in CAM_ABL["noise_mm"] for p in CAM_ABL["prefilters"]
               for f in CAM_ABL["features"]]
 # the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn);
@@ -87,7 +90,7 @@ rule camera_learn:
 rule camera_rollout:
     input:
         code=code_closure("camera_rollout.py"),
-        models=f"{RESULTS}/camera/models/main/{CAM_NOISE}mm_{CAM['method']['prefilter']}_{CAM['method']['features']}",
+        models=CAM_MODEL_DIR,
     output:
         traj=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}.parquet",
         energy=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}_energy.parquet",

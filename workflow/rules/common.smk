@@ -32,6 +32,10 @@ ANGLES_GT = sorted(
 # Every stage appends its final targets here; `rule all` collects them.
 ALL_TARGETS = []
 
+# Methods whose models are a `crgpr learn` directory (method -> directory; camera.smk): their
+# UQ samples every learned GP of the directory in one job (uq.smk).
+LEARNED_MODEL_DIRS = {}
+
 # Rollout methods whose results/rollouts/{method}/{angle}.parquet the metrics rule gathers;
 # each stage that writes rollouts extends it (report.smk's metrics rule reads it lazily).
 ROLLOUT_METHODS = []

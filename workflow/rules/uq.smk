@@ -5,7 +5,15 @@
 
 UQ = config["uq"]
 UQ_METHODS = list(UQ["methods"])
-UQ_METHOD_CFG = {m: config["rollouts"]["methods"][m] for m in UQ_METHODS}
+# methods of rollouts.methods: one job per gradient GP; `crgpr learn` directories (the camera
+# method): one job for the directory's learned GPs (which ones is known once it is trained)
+UQ_DIR_METHODS = [m for m in UQ_METHODS if m in LEARNED_MODEL_DIRS]
+UQ_CFG_METHODS = [m for m in UQ_METHODS if m not in LEARNED_MODEL_DIRS]
+UQ_METHOD_CFG = {m: config["rollouts"]["methods"][m] for m in UQ_CFG_METHODS}
+
+
+def _one_of(methods):
+    return "|".join(methods) if methods else "(?!)"  # no method: the rule matches nothing
 
 
 rule uq_samples:
@@ -17,7 +25,7 @@ rule uq_samples:
         samples=f"{RESULTS}/uq/{{method}}/samples/{{model}}.npz",
         diagnostics=f"{RESULTS}/uq/{{method}}/samples/{{model}}.json",
     wildcard_constraints:
-        method="|".join(UQ_METHODS),
+        method=_one_of(UQ_CFG_METHODS),
     params:
         cfg=cfg_params("seed", "uq"),
     log:
@@ -43,7 +51,7 @@ rule uq_rollout:
         # all angles of one method in one batch of S x A rods (crgpr.uq.rollout)
         expand(f"{RESULTS}/uq/{{{{method}}}}/{{angle}}.parquet", angle=UQ["angles_deg"]),
     wildcard_constraints:
-        method="|".join(UQ_METHODS),
+        method=_one_of(UQ_CFG_METHODS),
     params:
         cfg=cfg_params("uq", "rod", "simulation"),
         method_cfg=lambda wc: UQ_METHOD_CFG[wc.method],
@@ -60,6 +68,56 @@ rule uq_rollout:
         ENV
     script:
         "../scripts/uq_rollout.py"
+
+
+rule uq_samples_learned:
+    input:
+        code=code_closure("uq_samples_learned.py"),
+        models=lambda wc: LEARNED_MODEL_DIRS[wc.method],
+    output:
+        directory(f"{RESULTS}/uq/{{method}}/learned_samples"),
+    wildcard_constraints:
+        method=_one_of(UQ_DIR_METHODS),
+    params:
+        cfg=cfg_params("seed", "uq"),
+    log:
+        "logs/uq/{method}/learned_samples.log",
+    benchmark:
+        "benchmarks/uq/{method}/learned_samples.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=15,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_samples_learned.py"
+
+
+rule uq_rollout_learned:
+    input:
+        code=code_closure("uq_rollout_learned.py"),
+        samples=f"{RESULTS}/uq/{{method}}/learned_samples",
+        models=lambda wc: LEARNED_MODEL_DIRS[wc.method],
+    output:
+        expand(f"{RESULTS}/uq/{{{{method}}}}/{{angle}}.parquet", angle=UQ["angles_deg"]),
+    wildcard_constraints:
+        method=_one_of(UQ_DIR_METHODS),
+    params:
+        cfg=cfg_params("uq", "simulation"),
+        angles=UQ["angles_deg"],
+    log:
+        "logs/uq/{method}/rollout.log",
+    benchmark:
+        "benchmarks/uq/{method}/rollout.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=30,
+    conda:
+        ENV
+    script:
+        "../scripts/uq_rollout_learned.py"
 
 
 rule uq_coverage:
@@ -95,8 +153,8 @@ rule uq_coverage:
 rule uq_calibration:
     input:
         code=code_closure("uq_calibration.py"),
-        models=sorted({f"{s}.npz" for m in UQ_METHODS for s in _uq_models(m)}),
-        meta=sorted({f"{s}.json" for m in UQ_METHODS for s in _uq_models(m)}),
+        models=sorted({f"{s}.npz" for m in UQ_CFG_METHODS for s in _uq_models(m)}),
+        meta=sorted({f"{s}.json" for m in UQ_CFG_METHODS for s in _uq_models(m)}),
         ground_truth=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=UQ["angles_deg"]),
     output:
         report(
@@ -133,7 +191,7 @@ rule uq_figure:
             category="Uncertainty (RFF)",
         ),
     wildcard_constraints:
-        method="|".join(UQ_METHODS),
+        method=_one_of(UQ_METHODS),
         angle=r"-?\d+",
     params:
         cfg=cfg_params("uq"),

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.commands.learn import learn, load_learned, rollout_models, rollout_settings, try_rollout
+from crgpr.config import CAMERA_METHOD
 from crgpr.io import atomic_path, read_parquet, write_csv, write_json, write_parquet
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_frame
 from crgpr.report.metrics import accuracy
@@ -62,7 +63,7 @@ def camera_learn(cfg: dict[str, Any], measured: str, out_dir: str, features: str
 
 
 def camera_rollout(cfg: dict[str, Any], model_dir: str, angle: int, out: str, energy_out: str) -> None:
-    rollout_models(cfg, model_dir, float(angle), out, energy_out, label="cr_gpr_objective_camera")
+    rollout_models(cfg, model_dir, float(angle), out, energy_out, label=CAMERA_METHOD)
 
 
 def camera_ablation_cell(cfg: dict[str, Any], model_dir: str, gts: list[str], angles: list[int],

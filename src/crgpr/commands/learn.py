@@ -26,6 +26,7 @@ import copy
 import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -217,18 +218,39 @@ def read_manifest(model_dir: str | Path) -> dict[str, Any]:
     return man
 
 
+def learned_models(man: dict[str, Any]) -> list[str]:
+    """The gradient models a directory's manifest says were learned (the others are nominal laws)."""
+    return list(man.get("models", model_names(man["features"])))
+
+
+def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callable[[str], Any]
+                       ) -> tuple[dict[str, Any], float | None]:
+    """The components of a model directory's learned rod and its theta window: each learned model
+    as ``load(name)`` gives it (the rollout's evaluator, or its posterior samples for the UQ
+    rollout), seen through ``SelectedInputs`` where it was fitted on some feature columns, and
+    the laws taken from the nominal rod (``nominal_laws``, grey box). One assembly for the mean
+    and the sampled rod."""
+    params = RodParams.from_dict(man["rod"])
+    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
+    center = None
+    for m in learned_models(man):
+        meta = json.loads((Path(model_dir) / f"{m}.json").read_text())
+        cols = meta.get("feature_columns")
+        comp = load(m)
+        comps[m] = comp if cols is None else SelectedInputs(comp, cols)
+        if m in ("q_x", "dH_dtheta"):
+            center = meta.get("theta_center")
+    return comps, (center if man["features"] == "paper" else None)
+
+
 def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
     """The learned rod of a model directory, on the rod recorded in its manifest."""
     man = read_manifest(model_dir)
     params = RodParams.from_dict(man["rod"])
     if man["features"] == "paper":
         return LearnedRod.from_dir(model_dir, "paper", params), man
-    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
-    for m in man.get("models", model_names("objective")):
-        ev = load_evaluator(Path(model_dir) / m)
-        cols = ev.meta.get("feature_columns")
-        comps[m] = ev if cols is None else SelectedInputs(ev, cols)
-    return LearnedRod(comps, "objective", params), man
+    comps, center = learned_components(model_dir, man, lambda m: load_evaluator(Path(model_dir) / m))
+    return LearnedRod(comps, man["features"], params, center), man
 
 
 def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:
@@ -295,4 +317,5 @@ def _cli(args: Any) -> None:
           f") in {man['seconds']:.1f} s; written to {args.out}")
 
 
-__all__ = ["learn", "load_learned", "read_manifest", "rollout_models", "try_rollout", "model_names"]
+__all__ = ["learn", "load_learned", "learned_components", "learned_models", "read_manifest", "rollout_models",
+           "try_rollout", "model_names"]

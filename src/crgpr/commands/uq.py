@@ -2,7 +2,9 @@
 function name. Each takes the config values its rule passes as ``params``.
 
 uq_samples      S posterior samples of one gradient GP of one method
+uq_samples_learned   the same for every learned GP of a ``crgpr learn`` model directory
 uq_rollout      the S sampled models of one method through the rollout at every angle (one batch)
+uq_rollout_learned   the same for a ``crgpr learn`` model directory (grey-box laws kept as they are)
 uq_coverage     coverage at every level, method and angle (+ the paper's S = 10 rows)
 uq_calibration  function-level calibration of the gradient GPs on the test trajectories
 uq_figure       rod shapes with the band (one method, one angle)
@@ -21,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.io import read_metadata, read_parquet, write_csv, write_parquet
+from crgpr.io import read_metadata, read_parquet, write_csv, write_json, write_parquet
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_from_frame
 from crgpr.uq.coverage import COVERAGE_COLUMNS, coverage_rows, sample_arrays, summary_rows, truth_arrays
@@ -55,32 +57,72 @@ def uq_samples(model_npz: str, uq: Mapping[str, Any], seed: int, out: str, diagn
     sample_model(stem, stem.name, settings, int(seed), out, diagnostics)
 
 
+def uq_samples_learned(model_dir: str, uq: Mapping[str, Any], seed: int, out_dir: str) -> None:
+    """Rule ``uq_samples_learned``: ``uq_samples`` for every learned GP of a ``crgpr learn`` model
+    directory (its manifest's ``models``; the nominal laws are not sampled) into ``out_dir``
+    (name.npz + name.json each, then the directory's manifest, written last: a complete set)."""
+    from crgpr.commands.learn import MANIFEST, learned_models, read_manifest
+
+    settings = UQSettings.from_section(dict(uq))
+    man = read_manifest(model_dir)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MANIFEST).unlink(missing_ok=True)
+    for m in learned_models(man):
+        sample_model(Path(model_dir) / m, m, settings, int(seed), out / f"{m}.npz", out / f"{m}.json")
+    write_json({**man, "samples_of": str(model_dir)}, out / MANIFEST)
+
+
 def uq_rollout(samples: Sequence[str], models: Sequence[str], method: str, method_cfg: Mapping[str, str],
                angles: Sequence[int], rod: Mapping[str, Any], simulation: Mapping[str, Any],
                uq: Mapping[str, Any], outs: Sequence[str]) -> None:
     """Rule ``uq_rollout``: the S sampled models of ``method`` at every angle (one batch of S x A
     rods, ``rollout_samples_angles``); writes, per angle, every ``uq.store_every``-th record of
     every sample (``UQ_COLUMNS``, float32 states) to the matching file of ``outs``."""
+    settings = UQSettings.from_section(dict(uq))
+    smp = load_samples({Path(p).stem: p for p in samples}, settings.kernel_tol)
+    _rollout_and_write(smp, method_cfg["features"], RodParams.from_dict(dict(rod)),
+                       theta_center(models, method_cfg["features"]), method, angles, _sim(simulation),
+                       settings, int(uq["store_every"]), outs)
+
+
+def uq_rollout_learned(samples_dir: str, model_dir: str, method: str, angles: Sequence[int],
+                       simulation: Mapping[str, Any], uq: Mapping[str, Any], outs: Sequence[str]) -> None:
+    """Rule ``uq_rollout_learned``: ``uq_rollout`` for a ``crgpr learn`` model directory: its
+    learned GPs replaced by their samples (``samples_dir``, from ``uq_samples_learned``), its
+    nominal laws kept (``commands.learn.learned_components``: the assembly of the mean model), on
+    the rod of its manifest, with the config's integrator settings."""
+    from crgpr.commands.learn import learned_components, learned_models, read_manifest, rollout_settings
+
+    settings = UQSettings.from_section(dict(uq))
+    man = read_manifest(model_dir)
+    params = RodParams.from_dict(man["rod"])
+    smp = load_samples({m: Path(samples_dir) / f"{m}.npz" for m in learned_models(man)}, settings.kernel_tol)
+    comps, center = learned_components(model_dir, man, smp.__getitem__)
+    sim = rollout_settings({"simulation": dict(simulation)}, params, None)
+    _rollout_and_write(comps, man["features"], params, center, method, angles, sim, settings,
+                       int(uq["store_every"]), outs, {"model_dir": str(model_dir),
+                                                      "nominal_laws": man.get("nominal_laws", [])})
+
+
+def _rollout_and_write(smp: Mapping[str, Any], features: str, params: RodParams, center: float | None,
+                       method: str, angles: Sequence[int], sim: SimSettings, settings: UQSettings,
+                       k: int, outs: Sequence[str], extra: Mapping[str, Any] | None = None) -> None:
     if len(outs) != len(angles):
         raise ValueError(f"uq_rollout: {len(angles)} angles but {len(outs)} output files")
-    settings = UQSettings.from_section(dict(uq))
-    params, sim = RodParams.from_dict(dict(rod)), _sim(simulation)
-    smp = load_samples({Path(p).stem: p for p in samples}, settings.kernel_tol)
     bounds = {m: s.truncation_bound for m, s in smp.items() if hasattr(s, "truncation_bound")}
     log.info("kernel sums truncated below %g sigma_f^2: |change| <= %s (output units)",
              settings.kernel_tol, bounds)
-    center = theta_center(models, method_cfg["features"])
     t0 = time.perf_counter()
-    res = rollout_samples_angles(smp, method_cfg["features"], params, center, [float(a) for a in angles], sim)
+    res = rollout_samples_angles(smp, features, params, center, [float(a) for a in angles], sim)
     secs = time.perf_counter() - t0
-    k = int(uq["store_every"])
     for angle, out in zip(angles, outs, strict=True):
         t, q, p, keep, diverged = res[float(angle)]
         log.info("%s at %d deg: %d samples kept (%d diverged)", method, angle, len(keep), len(diverged))
         df = uq_frame(float(angle), t[::k], q[:, ::k], p[:, ::k], keep, params.ds)
         df = df.astype({c: np.float32 for c in ("x", "y", "theta", "p_x", "p_y", "p_theta")})
-        meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle,
-                "features": method_cfg["features"], "n_samples": settings.n_samples,
+        meta = {"kind": "uq_rollout", "method": method, "theta0_deg": angle, **(extra or {}),
+                "features": features, "n_samples": settings.n_samples,
                 "n_diverged": len(diverged), "diverged": diverged,
                 "kernel_truncation_bound": bounds, "batch_angles": list(angles),
                 "seconds_rollout": secs / len(angles), "seconds_rollout_batch": secs, "store_every": k,

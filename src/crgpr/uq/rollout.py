@@ -24,23 +24,33 @@ import numpy as np
 import pandas as pd
 
 from crgpr.learning.learned import LearnedRod, rollout_members
+from crgpr.learning.nominal import SelectedInputs
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import straight_rod
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
-from crgpr.uq.samples import SampleSet, select_samples
+from crgpr.uq.samples import SampleSet, is_sample_set, select_samples
 
 log = logging.getLogger(__name__)
 
 UQ_COLUMNS: tuple[str, ...] = ("sample", *TRAJECTORY_COLUMNS)
 
 
-def sampled_rod(samples: Mapping[str, SampleSet], features: str, params: RodParams,
-                theta_center: float | None) -> LearnedRod:
-    """The learned rod whose components are posterior samples (state (S, N+1, 3))."""
-    sizes = {m: s.n_samples for m, s in samples.items()}
+def n_samples_of(samples: Mapping[str, Any]) -> int:
+    """The common S of the components that are sample sets (deterministic ones, e.g. the nominal
+    laws of a grey-box model, are shared by every sample)."""
+    sizes = {m: (s.component if isinstance(s, SelectedInputs) else s).n_samples
+             for m, s in samples.items() if is_sample_set(s)}
     if len(set(sizes.values())) != 1:
-        raise ValueError(f"UQ samples have different S per model: {sizes}")
+        raise ValueError(f"UQ samples have different S per model (or none is sampled): {sizes}")
+    return next(iter(sizes.values()))
+
+
+def sampled_rod(samples: Mapping[str, Any], features: str, params: RodParams,
+                theta_center: float | None) -> LearnedRod:
+    """The learned rod whose components are posterior samples (state (S, N+1, 3)); components
+    without a sample axis (nominal laws) act on every sample alike."""
+    n_samples_of(samples)
     return LearnedRod(samples, features, params, theta_center)
 
 
@@ -64,7 +74,7 @@ def rollout_samples_angles(samples: Mapping[str, SampleSet], features: str, para
     physical range is recorded and dropped (the others resume, bit for bit the uninterrupted
     run); fewer than 2 samples left at an angle is an error."""
     angles = [float(a) for a in theta0_degs]
-    S = next(iter(samples.values())).n_samples
+    S = n_samples_of(samples)
     members = np.array([(a, s) for a in range(len(angles)) for s in range(S)], dtype=int)
     q0 = np.stack([straight_rod(math.radians(angles[a]), params) for a, _ in members])
 

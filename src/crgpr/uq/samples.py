@@ -41,6 +41,7 @@ from crgpr.gp.sampling import (
 from crgpr.gp.sampling import compress as compress_samples
 from crgpr.io import load_npz, write_json, write_npz
 from crgpr.learning.gradient_models import ALL_MODELS
+from crgpr.learning.nominal import SelectedInputs
 from crgpr.uq.settings import UQSettings
 
 log = logging.getLogger(__name__)
@@ -121,9 +122,23 @@ def uq_seed(seed: int, model: str) -> int:
     return int(np.random.SeedSequence([int(seed), 5, ALL_MODELS.index(model)]).generate_state(1)[0])
 
 
-def select_samples(smp: SampleSet, keep: np.ndarray) -> SampleSet:
-    """The sample set restricted to the samples ``keep`` (indices along the sample axis)."""
+def is_sample_set(component: Any) -> bool:
+    """Whether a learned-rod component carries a sample axis (a sample set, or one seen through
+    ``SelectedInputs``); a deterministic component (a nominal law) is shared by every sample."""
+    if isinstance(component, SelectedInputs):
+        return is_sample_set(component.component)
+    return isinstance(component, (CompressedSamples, TabulatedSamples))
+
+
+def select_samples(smp: Any, keep: np.ndarray) -> Any:
+    """The sample set restricted to the samples ``keep`` (indices along the sample axis); a
+    component seen through ``SelectedInputs`` keeps its columns, a deterministic one is returned
+    as it is."""
     keep = np.asarray(keep, dtype=int)
+    if isinstance(smp, SelectedInputs):
+        return SelectedInputs(select_samples(smp.component, keep), smp.columns)
+    if not is_sample_set(smp):
+        return smp
     if isinstance(smp, TabulatedSamples):
         return TabulatedSamples(smp.grid, smp.values[keep])
     arr = smp.to_arrays()
@@ -157,6 +172,8 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
     Y = np.asarray(arr["Y"], dtype=float)
     if Y.ndim == 2 and Y.shape[1] != 1:
         raise ValueError(f"{npz}: {Y.shape[1]} output columns; expected a single-output GP")
+    if "odd_about" in meta:
+        X, Y = _interleave_reflections(X, Y.ravel(), float(meta["odd_about"]), npz)
     y_mean = float(np.ravel(arr["y_mean"])[0])
     y_scale = float(np.ravel(arr["y_scale"])[0])
     x_mean, x_scale = np.ravel(arr["x_mean"]), np.ravel(arr["x_scale"])
@@ -167,12 +184,29 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
     Z = arr.get("dtc_Z")
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")
-    spec.rollout_arrays = {k: arr[k] for k in ("dtc_Z", "dtc_w", "dtc_beta") if k in arr}
+    spec.rollout_arrays = {k: arr[k] for k in ("dtc_Z", "dtc_w", "dtc_beta", "table_y") if k in arr}
     if "rollout_pivots" in arr:  # the rollout integrates the DTC mean on a subset of dtc_Z
         w = np.zeros_like(arr["dtc_w"])
         w[arr["rollout_pivots"]] = arr["rollout_w"]
         spec.rollout_arrays["dtc_w"] = w
     return spec, Z, (None if grid is None else np.ravel(grid).astype(float))
+
+
+def _interleave_reflections(X: np.ndarray, y: np.ndarray, about: float, src: Path
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of an odd law (``gradient_models.train_model_arrays(odd_about=...)``: n/2 time-major
+    samples, then their reflections (2 k0 - x, -y)) reordered so that each sample is followed by
+    its reflection: a contiguous block of rows (``uq.heldout_blocks``) is then a time block with
+    its mirror image, not a time block whose reflection stays in the other blocks. The posterior
+    does not depend on the order."""
+    h = X.shape[0] // 2
+    if X.shape[1] != 1 or 2 * h != X.shape[0] or not (
+            np.allclose(X[h:], 2.0 * about - X[:h], rtol=0.0, atol=1e-12 * (1.0 + np.abs(X).max()))
+            and np.allclose(y[h:], -y[:h], rtol=0.0, atol=1e-12 * (1.0 + np.abs(y).max()))):
+        raise ValueError(f"{src}: odd_about = {about:g}, but its rows are not samples followed by "
+                         "their reflections")
+    order = np.arange(2 * h).reshape(2, h).T.ravel()
+    return X[order], y[order]
 
 
 _subset = subset_spec
@@ -256,7 +290,7 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
     the grid (the rollout's own representation of their mean); the diagnostics then measure
     the interpolation error of the tabulated samples against the exact samples.
     """
-    if spec.dim == 1 and grid is not None:
+    if spec.dim == 1 and grid is not None and spec.Xs.shape[0] <= settings.tabulated_exact_max_n:
         c, cinfo, _ = posterior_scale(spec, settings, None)
         tab, info = _tabulated_samples(scaled_spec(spec, c) if c != 1.0 else spec, settings, seed, grid)
         return tab, {**info, **cinfo}
@@ -337,6 +371,8 @@ def draw_model_samples(spec: GP, settings: UQSettings, seed: int, Z: np.ndarray 
         info["sigma_n"] = spec.sigma_n * spec.out_scale
     else:
         info["exact_check"] = "skipped (uq.exact_check_max_n = 0)"
+    if spec.dim == 1 and grid is not None:
+        comp = _tabulate_sparse(comp, sp if settings.sampler == "sparse_pathwise" else None, spec, grid, info)
     info["seconds"] = time.perf_counter() - t0
     log.info("%s: %s", spec.name, {k: v for k, v in info.items() if k != "model"})
     return comp, info
@@ -400,6 +436,30 @@ def _reduced(comp: CompressedSamples, spec: GP, settings: UQSettings, c: float, 
     info["update_rank"] = (f"not reduced: {r} of {M} pivots, max change {err:.1e} sd "
                            f"(uq.update_rank_max_error {settings.update_rank_max_error:g})")
     return comp, info
+
+
+def _tabulate_sparse(comp: CompressedSamples, sp: SparsePosterior | None, spec: GP, grid: np.ndarray,
+                     info: dict[str, Any]) -> TabulatedSamples:
+    """Samples of a 1D GP with more than ``uq.tabulated_exact_max_n`` points (a learned bending
+    law m(kappa) on every frame): drawn by the sparse sampler, then tabulated on the rollout's
+    grid like the mean, each sample's deviation from the sampler's mean added to the rollout's
+    table (``table_y``: the exact posterior mean), so zero variance gives the mean model exactly."""
+    g = np.asarray(grid, dtype=float).ravel()
+    vals = np.hstack([comp(np.broadcast_to(g[i:i + 2048, None], (comp.n_samples, min(2048, g.size - i), 1)))
+                      for i in range(0, g.size, 2048)])
+    if sp is None:  # exact pathwise samples: their mean is the exact posterior mean
+        centre = exact_posterior(spec).mean_var(g[:, None])[0]
+    else:
+        centre, var = sp.mean_var(g[:, None])
+        table = spec.rollout_arrays.get("table_y")
+        if table is not None:
+            info["sparse_mean_vs_rollout_table_max_over_sd"] = float(
+                np.max(np.abs(centre - np.ravel(table)) / np.sqrt(np.maximum(var, 1e-300))))
+    table = spec.rollout_arrays.get("table_y")
+    base = np.ravel(table) if table is not None else centre
+    info["tabulated"] = (f"sparse samples tabulated on the rollout's {g.size}-point grid, centred on "
+                         + ("its table (the exact mean)" if table is not None else "the sampler's mean"))
+    return TabulatedSamples(g, vals - centre + base)
 
 
 def _tabulated_samples(spec: GP, settings: UQSettings, seed: int, grid: np.ndarray

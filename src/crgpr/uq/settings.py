@@ -39,6 +39,7 @@ class UQSettings:
     kernel_tol: float
     update_rank_tol: float
     update_rank_max_error: float
+    tabulated_exact_max_n: int
 
     @classmethod
     def from_section(cls, u: dict[str, Any]) -> UQSettings:
@@ -53,7 +54,8 @@ class UQSettings:
                 exact_check_max_n=int(u["exact_check_max_n"]), check_points=int(u["check_points"]),
                 posterior_scale=str(u["posterior_scale"]), heldout_blocks=int(u["heldout_blocks"]),
                 kernel_tol=float(u["kernel_tol"]), update_rank_tol=float(u["update_rank_tol"]),
-                update_rank_max_error=float(u["update_rank_max_error"]))
+                update_rank_max_error=float(u["update_rank_max_error"]),
+                tabulated_exact_max_n=int(u["tabulated_exact_max_n"]))
         if s.sampler not in SAMPLERS:
             raise ConfigError(f"config key uq.sampler: {s.sampler!r} is not one of {SAMPLERS}")
         if s.posterior_scale not in POSTERIOR_SCALES:
