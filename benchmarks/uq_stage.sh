@@ -19,7 +19,8 @@ import sys, yaml
 u = yaml.safe_load(open(sys.argv[1]))["uq"]
 out = ["results/tables/uq_coverage.csv", "results/tables/uq_function_calibration.csv",
        "results/figures/uq_reliability.png"]
-out += [f"results/figures/uq_band_{m}_{u[\"figure_angle_deg\"]}.png" for m in u["methods"]]
+a = u["figure_angle_deg"]
+out += [f"results/figures/uq_band_{m}_{a}.png" for m in u["methods"]]
 up = [f"results/rollouts/{m}/{a}.parquet" for m in u["methods"] for a in u["angles_deg"]]
 print(" ".join(out) + ";" + " ".join(up))' "$cfg")
 targets=${lists%%;*}
