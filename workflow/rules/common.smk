@@ -14,6 +14,11 @@ def code_closure(script):
     return _code_closure(BASE / "workflow" / "scripts" / script, BASE / "src")
 
 
+def _one_of(methods):
+    """Wildcard constraint matching exactly these names (none: a rule that matches nothing)."""
+    return "|".join(methods) if methods else "(?!)"
+
+
 def cfg_params(*keys):
     """A rule's ``params: cfg=``: the config values at dotted ``keys`` its output depends on.
 

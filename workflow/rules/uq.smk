@@ -12,10 +12,6 @@ UQ_CFG_METHODS = [m for m in UQ_METHODS if m not in LEARNED_MODEL_DIRS]
 UQ_METHOD_CFG = {m: config["rollouts"]["methods"][m] for m in UQ_CFG_METHODS}
 
 
-def _one_of(methods):
-    return "|".join(methods) if methods else "(?!)"  # no method: the rule matches nothing
-
-
 rule uq_samples:
     input:
         code=code_closure("uq_samples.py"),
