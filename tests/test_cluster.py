@@ -70,6 +70,7 @@ def test_benchmark_files_map_to_exactly_one_rule():
         "benchmarks/discovery/run_tip_mass.tsv": "discovery_run",
         "benchmarks/uq/cr_gpr_objective/samples/obj_m.tsv": "uq_samples",
         "benchmarks/uq/cr_gpr/rollout.tsv": "uq_rollout",
+        "benchmarks/uq/cr_gpr_objective_camera/learned_rollout.tsv": "uq_rollout_learned",
     }
     for path, rule in examples.items():
         owners = [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)]

@@ -103,9 +103,9 @@ rule uq_rollout_learned:
         cfg=cfg_params("uq", "simulation"),
         angles=UQ["angles_deg"],
     log:
-        "logs/uq/{method}/rollout.log",
+        "logs/uq/{method}/learned_rollout.log",
     benchmark:
-        "benchmarks/uq/{method}/rollout.tsv"
+        "benchmarks/uq/{method}/learned_rollout.tsv"
     threads: 1
     resources:
         mem_mb=3000,
