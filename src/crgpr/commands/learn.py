@@ -48,6 +48,7 @@ from crgpr.learning.nominal import (
     SelectedInputs,
     choose_nominal,
     position_noise_std,
+    segment_curvature_snr,
     strain_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
@@ -160,8 +161,20 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
             raise ConfigError("camera.learn.bending_symmetry: odd needs camera.learn.bending_inputs: [kappa]")
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
+    keep_m, snr_m = None, None
     if m_cols is not None and "nu2" not in bend:
         trims["obj_m"] = 0
+        # the clamped angle fit knows each segment's curvature noise: the bending law keeps the
+        # segments whose curvature SNR reaches camera.learn.snr_min (the tip's extrapolated ones do not)
+        noise = state_report.get("kappa_noise_per_segment")
+        if noise is not None and "obj_m" in trained:
+            m_tgt = training_data(arr, params, "obj_m", None)[1].reshape(arr["x"].shape[0], params.N)
+            snr_m = segment_curvature_snr(m_tgt, params.EI, np.asarray(noise))
+            keep_m = snr_m >= float(cam["snr_min"])
+            if keep_m.sum() < 2:
+                raise ValueError(f"{measured}: the positions resolve the curvature of {int(keep_m.sum())} "
+                                 f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
+                                 "too noisy to learn a bending law")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -171,12 +184,15 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
                                   extra={"input": kind}, trim_ends=trims[name],
+                                  keep_segments=keep_m if name == "obj_m" else None,
                                   columns=m_cols if name == "obj_m" else None,
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(), "state": state_report,
                 "trim_ends": trim, "trim_ends_per_model": trims,
+                "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
+                "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "models": trained, **grey,
                 "model_reports": reports, "seed": seed,

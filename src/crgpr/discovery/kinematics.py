@@ -13,9 +13,12 @@
    min |W phi - psi|^2 + lam |D2 phi|^2, W_kj = share of chord k covered by segment j, D2 the
    second difference (a cubic-spline prior on the angle): one linear operator
    S = (W^T W + lam D2^T D2)^-1 W^T, lam by generalised cross-validation pooled over frames,
-   applied to psi and its rates alike (so they stay consistent).
+   applied to psi and its rates alike (so they stay consistent). A rigidly clamped rod
+   (``crgpr learn``) instead fits the nodal angles theta_i themselves, theta_0 one clamp angle
+   for the record and its rates zero, with a higher-order penalty (``clamped_angle_fit``).
 3. The rod is rebuilt unstretched and unsheared from the base: nodal angles
-   theta_i = (phi_{i-1} + phi_i) / 2 (linear extrapolation at the ends), positions
+   theta_i = (phi_{i-1} + phi_i) / 2 (linear extrapolation at the ends; the fitted theta_i and
+   phi_j = (theta_j + theta_{j+1}) / 2 when clamped), positions
    r_i = r_b + sum_{j<i} ds nu1^0 (cos phi_j, sin phi_j), and their exact time derivatives;
    positions, velocities and accelerations are then pinned to the smoothed markers (their
    differences interpolated linearly in s), so that markers on model nodes keep their own
@@ -46,6 +49,7 @@ class Kinematics:
     noise_std_m: float  # GP noise level of the positions [m]
     base_segment_angle: np.ndarray  # phi_0(t) [rad]
     s_markers: np.ndarray  # marker arc lengths [m] (the comparison points)
+    kappa_noise: np.ndarray | None = None  # clamped fit: noise sd of each segment's curvature [1/m]
 
 
 def segment_angles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -128,6 +132,63 @@ def spatial_operator(W: np.ndarray, psi_frames: np.ndarray) -> tuple[np.ndarray,
     return best[2], best[1]
 
 
+def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray, order: int
+                      ) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray]:
+    """Nodal angles of a clamped rod from chord angles: operator, clamp vector, clamp angle, lam
+    and the noise sd of each segment's angle difference theta_{j+1} - theta_j.
+
+    The unknowns are the nodal angles theta_0..theta_N of the model (``rod.py``), whose
+    segment j is straight at the mid-segment angle (theta_j + theta_{j+1}) / 2 (paper Sec. III-A;
+    exact for an unsheared rod), so chord k sees ``W A theta`` (A the mid-segment average).
+    The clamp fixes theta_0 = c in every frame, one constant for the record: per frame
+    min |W A theta - psi|^2 + lam |D theta|^2 subject to theta_0 = c, D the ``order``-th
+    difference along s, c minimising the sum over frames (closed form: the objective is
+    quadratic in c) and lam by GCV pooled over ``psi_frames``. Order 4 penalises d2 kappa/ds2
+    only: the static moment balance m'' = load makes a gravity-loaded cantilever's curvature
+    quadratic in s, which order 2 (d kappa/ds, a cubic-spline prior) shrinks where it is largest,
+    at the clamp (the camera record of issue 13: kappa_0 0.90x, clamp 0.045 rad low). Returns S
+    (N, n_chords) and h (N,) with theta_1..N = S psi - h c, so that rates, whose clamp value is
+    zero, are S dpsi/dt; c from ``psi_all``. The chord-angle noise variance is the pooled
+    residual sum of squares over the residual degrees of freedom (``psi_all``), propagated
+    through the linear operator to the differences (kappa_j's noise sd = that / ds).
+    """
+    n_seg = W.shape[1]
+    A = 0.5 * (np.eye(n_seg, n_seg + 1) + np.eye(n_seg, n_seg + 1, 1))
+    B = W @ A
+    b0, B1 = B[:, 0], B[:, 1:]
+    D = np.diff(np.eye(n_seg + 1), order, axis=0)
+    d0, D1 = D[:, 0], D[:, 1:]
+    BtB, P = B1.T @ B1, D1.T @ D1
+    scale = np.trace(BtB) / max(np.trace(P), 1e-300)
+
+    def solve(lam: float, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        M = BtB + lam * P
+        S = np.linalg.solve(M, B1.T)
+        h = np.linalg.solve(M, B1.T @ b0 + lam * D1.T @ d0)
+        a = psi @ (B1 @ S).T - psi  # residual at c = 0, (n_t, n_chords)
+        u = b0 - B1 @ h
+        b = psi @ (D1 @ S).T  # penalty vector at c = 0
+        w = d0 - D1 @ h
+        c = -float(np.sum(a @ u) + lam * np.sum(b @ w)) / (psi.shape[0] * float(u @ u + lam * w @ w))
+        return S, h, c, a + c * u
+
+    best = None
+    for lam in scale * np.logspace(-8, 3, 45):
+        S, h, c, r = solve(lam, psi_frames)
+        dof = W.shape[0] - np.trace(B1 @ S)
+        if dof <= 1e-6:
+            continue
+        gcv = float(np.mean(r**2)) / dof**2
+        if best is None or gcv < best[0]:
+            best = (gcv, lam)
+    lam = scale * 1e-8 if best is None else best[1]
+    S, h, c, r = solve(lam, psi_all)
+    dof = max(W.shape[0] - float(np.trace(B1 @ S)), 1e-6)
+    sigma_psi = math.sqrt(float(np.sum(r**2)) / (psi_all.shape[0] * dof))
+    Dk = np.diff(np.vstack([np.zeros((1, W.shape[0])), S]), axis=0)  # theta_{j+1} - theta_j per chord noise
+    return S, h, c, lam, sigma_psi * np.sqrt(np.sum(Dk**2, axis=1))
+
+
 def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, max_points: int,
                  hyper_points: int, n_restarts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """GP smoothing of every column of A (NaN = missing) with shared hyperparameters."""
@@ -174,8 +235,14 @@ def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, 
 
 def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 0.0, seed: int = 0,
                       max_points: int = 1500, hyper_points: int = 120, n_restarts: int = 1,
-                      spatial_fit_times: int = 40) -> Kinematics:
-    """q, v, a on the model grid and the measured times (module docstring, steps 1-3)."""
+                      spatial_fit_times: int = 40, clamp_order: int | None = None) -> Kinematics:
+    """q, v, a on the model grid and the measured times (module docstring, steps 1-3).
+
+    ``clamp_order``: the base angle is one constant of the record (a rigid clamp); the nodal
+    angles are then fitted directly, theta_0 shared by every frame and its rates zero, with
+    this difference order penalised (``clamped_angle_fit``), instead of segment angles with
+    the ends extrapolated (None: the base may turn, as in the discovery workflow).
+    """
     t = meas.t
     x, vx, ax, nx = _time_smooth(t, meas.x, noise_std_min, seed, max_points, hyper_points, n_restarts)
     y, vy, ay, ny = _time_smooth(t, meas.y, noise_std_min, seed + 1, max_points, hyper_points, n_restarts)
@@ -194,8 +261,18 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
                                         np.c_[z, ax], np.c_[z, ay])
     W = chord_operator(pts, params)
     rows = np.unique(np.linspace(0, n_t - 1, min(spatial_fit_times, n_t)).round().astype(int))
-    S, _ = spatial_operator(W, psi[rows])
-    phi, dphi, ddphi = psi @ S.T, dpsi @ S.T, ddpsi @ S.T
+    if clamp_order is not None:
+        S, h, c, _, dth_sd = clamped_angle_fit(W, psi[rows], psi, clamp_order)
+        kappa_noise = dth_sd / params.ds
+        zero_t = np.zeros((n_t, 1))
+        th = np.c_[zero_t + c, psi @ S.T - c * h]
+        dth, ddth = np.c_[zero_t, dpsi @ S.T], np.c_[zero_t, ddpsi @ S.T]
+        phi, dphi, ddphi = (0.5 * (f[:, 1:] + f[:, :-1]) for f in (th, dth, ddth))
+    else:
+        S, _ = spatial_operator(W, psi[rows])
+        phi, dphi, ddphi = psi @ S.T, dpsi @ S.T, ddpsi @ S.T
+        th, dth, ddth = node_angles(phi), node_angles(dphi), node_angles(ddphi)
+        kappa_noise = None
     seg = params.ds * params.nu1_0
     c, s = np.cos(phi), np.sin(phi)
     zero = np.zeros((n_t, params.N + 1))
@@ -219,10 +296,10 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
     qx, qy = qx + (x - qx @ Mk.T) @ E.T, qy + (y - qy @ Mk.T) @ E.T
     vxm, vym = vxm + (vx - vxm @ Mk.T) @ E.T, vym + (vy - vym @ Mk.T) @ E.T
     axm, aym = axm + (ax - axm @ Mk.T) @ E.T, aym + (ay - aym @ Mk.T) @ E.T
-    q = np.stack([qx, qy, node_angles(phi)], axis=-1)
-    v = np.stack([vxm, vym, node_angles(dphi)], axis=-1)
-    a = np.stack([axm, aym, node_angles(ddphi)], axis=-1)
-    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi[:, 0].copy(), s_m.copy())
+    q = np.stack([qx, qy, th], axis=-1)
+    v = np.stack([vxm, vym, dth], axis=-1)
+    a = np.stack([axm, aym, ddth], axis=-1)
+    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi[:, 0].copy(), s_m.copy(), kappa_noise)
 
 
 def marker_positions(q: np.ndarray, s_markers: np.ndarray, params: RodParams) -> np.ndarray:

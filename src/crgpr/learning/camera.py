@@ -7,20 +7,25 @@ returns the arrays of the derivative data set E (eq. (12)) in the schema of
 ``prefilter.prefiltered_arrays``, so the gradient GPs (``gradient_models.train_model_arrays``)
 are trained exactly as from the simulator's full state:
 
-* theta: segment angles phi_j = atan2(dy_j, dx_j), nodal angles theta_i = (phi_{i-1} + phi_i)/2
-  and linear extrapolation at the ends (``measured.node_angles``): exact for a rod without shear;
+* theta: chord angles psi_k = atan2(dy_k, dx_k) between markers; with the ``gp`` prefilter the
+  nodal angles theta_i are fitted to them along s (the model's segment j lies at the mid-segment
+  angle (theta_j + theta_{j+1})/2, exact for a rod without shear), theta_0 one clamp angle for
+  the whole record, a penalty on the ``camera.learn.angle_penalty_order``-th difference of theta
+  (``discovery.kinematics.clamped_angle_fit``); with ``fd``, theta_i = (phi_{i-1} + phi_i)/2 of
+  the raw segment angles and linear extrapolation at the ends (``kinematics.node_angles``);
 * momenta per unit length (nominal rod): p_x = rho A dx/dt, p_y = rho A dy/dt,
   p_theta = rho I dtheta/dt (the simulator's definition, ``physics.simulate.Trajectory``);
 * time derivatives by one of two prefilters:
   ``gp``: the project's GP smoother of the positions (``measured.smooth_kinematics``:
   Matern-5/2 + quadratic basis, hyperparameters and the noise level sigma_n fitted by the
   marginal likelihood on the data in metres, so the noise is estimated, not given; angle rates
-  analytically from the smoothed position derivatives; segment angles smoothed along s);
+  analytically from the smoothed position derivatives, fitted along s like the angles, the
+  clamp's rate zero);
   ``fd``: central finite differences of the raw positions (``prefilter.fd_time_derivatives``),
   angles from the raw positions: the paper's ablation alternative;
 * the clamped base: node 0 does not move, so its position and angle are the time means of the
-  (smoothed) values and its rates are zero (the extrapolated base angle is unbiased to first
-  order in the curvature);
+  (smoothed) values and its rates are zero (with ``gp`` the fitted clamp angle is already one
+  constant);
 * frames within ``edge_trim_s`` of either end of the record are dropped (GP derivatives are
   least certain there), then at most ``n_t_out`` evenly spaced frames are kept.
 
@@ -51,14 +56,14 @@ class LearnSettings:
 
     gp_max_points: int
     hyper_points: int
-    spatial_smoothing: bool
+    angle_penalty_order: int
     edge_trim_s: float
     n_t_out: int
 
     @classmethod
     def from_config(cls, c: dict) -> LearnSettings:
         return cls(gp_max_points=int(c["gp_max_points"]), hyper_points=int(c["hyper_points"]),
-                   spatial_smoothing=bool(c["spatial_smoothing"]), edge_trim_s=float(c["edge_trim_s"]),
+                   angle_penalty_order=int(c["angle_penalty_order"]), edge_trim_s=float(c["edge_trim_s"]),
                    n_t_out=int(c["n_t_out"]))
 
 
@@ -91,11 +96,12 @@ def fd_kinematics(meas: Measured) -> Kinematics:
 def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int) -> Kinematics:
     """The GP prefilter of the positions (noise level fitted on the data), see module docstring.
 
-    ``discovery.kinematics.smooth_kinematics`` on the model grid; its spatial step always
-    smooths the angles (camera.learn.spatial_smoothing is no longer separate).
+    ``discovery.kinematics.smooth_kinematics`` on the model grid, the base clamped: the nodal
+    angles are fitted along s with one clamp angle for the record and the difference of order
+    ``camera.learn.angle_penalty_order`` penalised (``kinematics.clamped_angle_fit``).
     """
     return smooth_kinematics(meas, params, seed=seed, max_points=st.gp_max_points,
-                             hyper_points=st.hyper_points)
+                             hyper_points=st.hyper_points, clamp_order=st.angle_penalty_order)
 
 
 def kinematics(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
@@ -119,7 +125,7 @@ def clamp_base(kin: Kinematics) -> Kinematics:
     q[:, 0, :] = q[:, 0, :].mean(axis=0)
     v[:, 0, :] = 0.0
     a[:, 0, :] = 0.0
-    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers)
+    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers, kin.kappa_noise)
 
 
 def kept_frames(t: np.ndarray, edge_trim_s: float, n_out: int) -> np.ndarray:
@@ -169,5 +175,6 @@ def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: Le
     report = {"prefilter": prefilter, "n_frames": int(meas.t.size), "n_frames_used": int(idx.size),
               "rate_hz": meas.rate_hz, "n_nodes": int(params.N + 1), "markers": meas.summary(),
               "noise_std_m_estimated": None if np.isnan(kin.noise_std_m) else float(kin.noise_std_m),
-              "edge_trim_s": st.edge_trim_s}
+              "edge_trim_s": st.edge_trim_s,
+              "kappa_noise_per_segment": None if kin.kappa_noise is None else kin.kappa_noise.tolist()}
     return arr, report

@@ -136,12 +136,15 @@ def model_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, p: np.ndarray, 
 
 
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
-                  center: float | None, trim_ends: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                  center: float | None, trim_ends: int = 0, keep_segments: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """All (X, y) samples of one model from the prefilter arrays (before subsampling).
 
     ``trim_ends``: leave out the first and last ``trim_ends`` segments (nodes) of the
     multi-dimensional models, where angles derived from positions are extrapolations
     (camera data, ``learning.camera``); the momentum models keep every node.
+    ``keep_segments``: a boolean mask over the segments of a constitutive model instead
+    (``crgpr learn``: the bending law keeps the segments whose curvature the positions resolve).
     """
     x, y, th = arr["x"], arr["y"], arr["theta"]
     ds = params.ds
@@ -166,7 +169,9 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         else:
             c = sg["nu1"] * n2 - sg["nu2"] * n1
             tgt = ft.moments_from_htheta(hz[..., 2], c, params)
-    if trim_ends and name not in MOMENTUM_MODELS:
+    if keep_segments is not None and name not in MOMENTUM_MODELS:
+        X, tgt = X[:, keep_segments], tgt[:, keep_segments]
+    elif trim_ends and name not in MOMENTUM_MODELS:
         X, tgt = X[:, trim_ends:-trim_ends], tgt[:, trim_ends:-trim_ends]
     return X.reshape(-1, X.shape[-1]), tgt.reshape(-1)
 
@@ -353,13 +358,14 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
 def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray], params: RodParams,
                        out_stem: str | Path, source: str, prefilter_method: str,
                        extra: dict[str, Any] | None = None, trim_ends: int = 0,
-                       check_states: list[str] | None = None, hyper: str = "fitted",
+                       keep_segments: np.ndarray | None = None, check_states: list[str] | None = None,
+                       hyper: str = "fitted",
                        columns: list[int] | None = None, odd_about: float | None = None) -> dict[str, Any]:
     """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
 
     ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
-    to the model's JSON; ``trim_ends`` see ``training_data``; ``check_states``: ground-truth
-    trajectory files at whose states the rollout mean is checked; ``hyper``: 'fitted' or
+    to the model's JSON; ``trim_ends``, ``keep_segments`` see ``training_data``; ``check_states``:
+    ground-truth trajectory files at whose states the rollout mean is checked; ``hyper``: 'fitted' or
     'paper_table2'; ``columns``: fit on these columns of the model's features only (recorded as
     ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
     grey-box bending law); ``odd_about``: a 1-D law odd about this input value (the bending
@@ -372,7 +378,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     if arr["x"].shape[1] != params.N + 1:
         raise ValueError(f"{source}: {arr['x'].shape[1]} nodes but the rod has N + 1 = {params.N + 1}")
     center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
-    X, y = training_data(arr, params, name, center, trim_ends)
+    X, y = training_data(arr, params, name, center, trim_ends, keep_segments)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError(f"{source}: non-finite features or targets for model {name}")
     seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
