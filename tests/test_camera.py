@@ -270,3 +270,4 @@ def test_the_bending_law_leaves_out_segments_whose_curvature_is_noise():
     snr = segment_curvature_snr(m, EI, np.array([0.5, 0.5, 0.0]))
     np.testing.assert_allclose(snr[:2], [2.0, 0.2])
     assert snr[2] == np.inf
+    assert segment_curvature_snr(m, EI, np.array([np.nan, 0.5, 0.5]))[0] == np.inf  # unknown noise: kept

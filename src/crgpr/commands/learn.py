@@ -169,7 +169,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         noise = state_report.get("kappa_noise_per_segment")
         if noise is not None and "obj_m" in trained:
             m_tgt = training_data(arr, params, "obj_m", None)[1].reshape(arr["x"].shape[0], params.N)
-            snr_m = segment_curvature_snr(m_tgt, params.EI, np.asarray(noise))
+            snr_m = segment_curvature_snr(m_tgt, params.EI, np.array(noise, dtype=float))
             keep_m = snr_m >= float(cam["snr_min"])
             if keep_m.sum() < 2:
                 raise ValueError(f"{measured}: the positions resolve the curvature of {int(keep_m.sum())} "

@@ -150,7 +150,8 @@ def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray
     (N, n_chords) and h (N,) with theta_1..N = S psi - h c, so that rates, whose clamp value is
     zero, are S dpsi/dt; c from ``psi_all``. The chord-angle noise variance is the pooled
     residual sum of squares over the residual degrees of freedom (``psi_all``), propagated
-    through the linear operator to the differences (kappa_j's noise sd = that / ds).
+    through the linear operator to the differences (kappa_j's noise sd = that / ds); NaN
+    where no lam leaves residual degrees of freedom (as many unknowns as chords): unknown.
     """
     n_seg = W.shape[1]
     A = 0.5 * (np.eye(n_seg, n_seg + 1) + np.eye(n_seg, n_seg + 1, 1))
@@ -183,8 +184,8 @@ def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray
             best = (gcv, lam)
     lam = scale * 1e-8 if best is None else best[1]
     S, h, c, r = solve(lam, psi_all)
-    dof = max(W.shape[0] - float(np.trace(B1 @ S)), 1e-6)
-    sigma_psi = math.sqrt(float(np.sum(r**2)) / (psi_all.shape[0] * dof))
+    dof = W.shape[0] - float(np.trace(B1 @ S))
+    sigma_psi = math.sqrt(float(np.sum(r**2)) / (psi_all.shape[0] * dof)) if best is not None else math.nan
     Dk = np.diff(np.vstack([np.zeros((1, W.shape[0])), S]), axis=0)  # theta_{j+1} - theta_j per chord noise
     return S, h, c, lam, sigma_psi * np.sqrt(np.sum(Dk**2, axis=1))
 

@@ -176,5 +176,6 @@ def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: Le
               "rate_hz": meas.rate_hz, "n_nodes": int(params.N + 1), "markers": meas.summary(),
               "noise_std_m_estimated": None if np.isnan(kin.noise_std_m) else float(kin.noise_std_m),
               "edge_trim_s": st.edge_trim_s,
-              "kappa_noise_per_segment": None if kin.kappa_noise is None else kin.kappa_noise.tolist()}
+              "kappa_noise_per_segment": None if kin.kappa_noise is None else
+              [float(v) if np.isfinite(v) else None for v in kin.kappa_noise]}
     return arr, report

@@ -111,12 +111,14 @@ def segment_curvature_snr(m: np.ndarray, EI: float, kappa_noise: np.ndarray) -> 
     """Curvature signal-to-noise of each segment (N,): rms over frames of the bending targets m
     (n_t, N) (from the force balance, eq. (13), so independent of the curvature reconstruction)
     over EI, divided by that segment's reconstructed-curvature noise sd
-    (``discovery.kinematics.clamped_angle_fit``). Below ``camera.learn.snr_min`` a segment's
-    curvature input is mostly noise: kept in a regression of m on it, it would flatten the
-    learned law where the data crowd (errors in variables: E[kappa | kappa_est] shrinks)."""
+    (``discovery.kinematics.clamped_angle_fit``; NaN = unknown, kept). Below
+    ``camera.learn.snr_min`` a segment's curvature input is mostly noise: kept in a regression
+    of m on it, it would flatten the learned law where the data crowd (errors in variables:
+    E[kappa | kappa_est] shrinks)."""
     sig = np.sqrt(np.mean(np.square(m), axis=0)) / float(EI)
     noise = np.asarray(kappa_noise, dtype=float)
-    return np.where(noise > 0, sig / np.where(noise > 0, noise, 1.0), np.inf)
+    known = np.isfinite(noise) & (noise > 0)  # an unknown (NaN) or zero noise: the segment is kept
+    return np.where(known, sig / np.where(known, noise, 1.0), np.inf)
 
 
 def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: float) -> list[str]:
