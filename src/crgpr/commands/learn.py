@@ -40,7 +40,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.features import OBJ_M_FEATURES
-from crgpr.learning.gradient_models import MOMENTUM_MODELS, train_model_arrays, training_data
+from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
     NOMINAL_LAWS,
@@ -161,9 +161,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
             raise ConfigError("camera.learn.bending_symmetry: odd needs camera.learn.bending_inputs: [kappa]")
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
+    masks = {n: inner_segments(params.N, trim) for n in trained}
     keep_m, snr_m = None, None
     if m_cols is not None and "nu2" not in bend:
         trims["obj_m"] = 0
+        masks["obj_m"] = inner_segments(params.N, 0)
         # the clamped angle fit knows each segment's curvature noise: the bending law keeps the
         # segments whose curvature SNR reaches camera.learn.snr_min (the tip's extrapolated ones do not)
         noise = state_report.get("kappa_noise_per_segment")
@@ -175,6 +177,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 raise ValueError(f"{measured}: the positions resolve the curvature of {int(keep_m.sum())} "
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
+            masks["obj_m"] = keep_m
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -183,8 +186,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     reports = {}
     for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
-                                  extra={"input": kind}, trim_ends=trims[name],
-                                  keep_segments=keep_m if name == "obj_m" else None,
+                                  extra={"input": kind}, segments=masks[name],
                                   columns=m_cols if name == "obj_m" else None,
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
@@ -211,7 +213,8 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
     law (q_x, q_y mix all three), so they are always learned in full.
     """
     sigma = position_noise_std(np.concatenate([x, y], axis=1))
-    res = {k: training_data(arr, params, f"obj_{k}", None, trim)[1] for k in ("n1", "n2", "m")}
+    res = {k: training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))[1]
+           for k in ("n1", "n2", "m")}
     snr = strain_snr(res, params, sigma)
     setting = cam["nominal_laws"]
     chosen = choose_nominal(setting, snr, float(cam["snr_min"]))

@@ -108,6 +108,21 @@ def chord_operator(s_points: np.ndarray, params: RodParams) -> np.ndarray:
     return np.maximum(hi - lo, 0.0) / (b - a)[:, None]
 
 
+def _gcv_lambda(scale: float, fit) -> float | None:
+    """The lam of ``scale * logspace(-8, 3, 45)`` minimising pooled GCV, mean(r^2) / dof^2, where
+    ``fit(lam)`` returns the residuals r over the fitting frames and the residual degrees of
+    freedom dof (n_chords - trace of the hat matrix); None if no lam leaves dof > 0."""
+    best = None
+    for lam in scale * np.logspace(-8, 3, 45):
+        r, dof = fit(lam)
+        if dof <= 1e-6:
+            continue
+        gcv = float(np.mean(r**2)) / dof**2
+        if best is None or gcv < best[0]:
+            best = (gcv, lam)
+    return None if best is None else best[1]
+
+
 def spatial_operator(W: np.ndarray, psi_frames: np.ndarray) -> tuple[np.ndarray, float]:
     """S = (W^T W + lam D2^T D2)^-1 W^T with lam by pooled GCV over the given frames."""
     n_seg = W.shape[1]
@@ -115,21 +130,15 @@ def spatial_operator(W: np.ndarray, psi_frames: np.ndarray) -> tuple[np.ndarray,
     P = D2.T @ D2
     WtW = W.T @ W
     scale = np.trace(WtW) / max(np.trace(P), 1e-300)
-    best = None
-    for lam in scale * np.logspace(-8, 3, 45):
-        S = np.linalg.solve(WtW + lam * P, W.T)
-        H = W @ S
-        r = psi_frames - psi_frames @ H.T
-        dof = W.shape[0] - np.trace(H)
-        if dof <= 1e-6:
-            continue
-        gcv = float(np.mean(r**2)) / dof**2
-        if best is None or gcv < best[0]:
-            best = (gcv, lam, S)
-    if best is None:  # as many free parameters as chords: the least-curvature interpolant
+
+    def fit(lam: float) -> tuple[np.ndarray, float]:
+        H = W @ np.linalg.solve(WtW + lam * P, W.T)
+        return psi_frames - psi_frames @ H.T, W.shape[0] - float(np.trace(H))
+
+    lam = _gcv_lambda(scale, fit)
+    if lam is None:  # as many free parameters as chords: the least-curvature interpolant
         lam = scale * 1e-8
-        return np.linalg.solve(WtW + lam * P, W.T), lam
-    return best[2], best[1]
+    return np.linalg.solve(WtW + lam * P, W.T), lam
 
 
 def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray, order: int
@@ -173,16 +182,12 @@ def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray
         c = -float(np.sum(a @ u) + lam * np.sum(b @ w)) / (psi.shape[0] * float(u @ u + lam * w @ w))
         return S, h, c, a + c * u
 
-    best = None
-    for lam in scale * np.logspace(-8, 3, 45):
-        S, h, c, r = solve(lam, psi_frames)
-        dof = W.shape[0] - np.trace(B1 @ S)
-        if dof <= 1e-6:
-            continue
-        gcv = float(np.mean(r**2)) / dof**2
-        if best is None or gcv < best[0]:
-            best = (gcv, lam)
-    lam = scale * 1e-8 if best is None else best[1]
+    def fit(lam: float) -> tuple[np.ndarray, float]:
+        S, _, _, r = solve(lam, psi_frames)
+        return r, W.shape[0] - float(np.trace(B1 @ S))
+
+    best = _gcv_lambda(scale, fit)
+    lam = scale * 1e-8 if best is None else best
     S, h, c, r = solve(lam, psi_all)
     dof = W.shape[0] - float(np.trace(B1 @ S))
     sigma_psi = math.sqrt(float(np.sum(r**2)) / (psi_all.shape[0] * dof)) if best is not None else math.nan

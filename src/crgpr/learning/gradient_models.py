@@ -135,16 +135,22 @@ def model_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, p: np.ndarray, 
     raise ConfigError(f"unknown gradient model {name!r}")
 
 
+def inner_segments(n_segments: int, trim_ends: int) -> np.ndarray:
+    """Segment mask without the first and last ``trim_ends`` segments."""
+    keep = np.ones(n_segments, dtype=bool)
+    if trim_ends:
+        keep[:trim_ends] = keep[-trim_ends:] = False
+    return keep
+
+
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
-                  center: float | None, trim_ends: int = 0, keep_segments: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  center: float | None, segments: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """All (X, y) samples of one model from the prefilter arrays (before subsampling).
 
-    ``trim_ends``: leave out the first and last ``trim_ends`` segments (nodes) of the
-    multi-dimensional models, where angles derived from positions are extrapolations
-    (camera data, ``learning.camera``); the momentum models keep every node.
-    ``keep_segments``: a boolean mask over the segments of a constitutive model instead
-    (``crgpr learn``: the bending law keeps the segments whose curvature the positions resolve).
+    ``segments``: a boolean mask over the N segments (nodes) of a constitutive model, the ones
+    kept (camera data, ``crgpr learn``: the ends, whose angles derived from positions are
+    extrapolations (``inner_segments``), or the segments whose curvature the positions do not
+    resolve are left out); the momentum models keep every node.
     """
     x, y, th = arr["x"], arr["y"], arr["theta"]
     ds = params.ds
@@ -169,10 +175,8 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         else:
             c = sg["nu1"] * n2 - sg["nu2"] * n1
             tgt = ft.moments_from_htheta(hz[..., 2], c, params)
-    if keep_segments is not None and name not in MOMENTUM_MODELS:
-        X, tgt = X[:, keep_segments], tgt[:, keep_segments]
-    elif trim_ends and name not in MOMENTUM_MODELS:
-        X, tgt = X[:, trim_ends:-trim_ends], tgt[:, trim_ends:-trim_ends]
+    if segments is not None and name not in MOMENTUM_MODELS:
+        X, tgt = X[:, segments], tgt[:, segments]
     return X.reshape(-1, X.shape[-1]), tgt.reshape(-1)
 
 
@@ -357,14 +361,13 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
 
 def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray], params: RodParams,
                        out_stem: str | Path, source: str, prefilter_method: str,
-                       extra: dict[str, Any] | None = None, trim_ends: int = 0,
-                       keep_segments: np.ndarray | None = None, check_states: list[str] | None = None,
-                       hyper: str = "fitted",
+                       extra: dict[str, Any] | None = None, segments: np.ndarray | None = None,
+                       check_states: list[str] | None = None, hyper: str = "fitted",
                        columns: list[int] | None = None, odd_about: float | None = None) -> dict[str, Any]:
     """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
 
     ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
-    to the model's JSON; ``trim_ends``, ``keep_segments`` see ``training_data``; ``check_states``:
+    to the model's JSON; ``segments`` see ``training_data``; ``check_states``:
     ground-truth trajectory files at whose states the rollout mean is checked; ``hyper``: 'fitted' or
     'paper_table2'; ``columns``: fit on these columns of the model's features only (recorded as
     ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
@@ -378,7 +381,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     if arr["x"].shape[1] != params.N + 1:
         raise ValueError(f"{source}: {arr['x'].shape[1]} nodes but the rod has N + 1 = {params.N + 1}")
     center = ft.theta_center(arr["theta"]) if gm["theta_wrap"] else None
-    X, y = training_data(arr, params, name, center, trim_ends, keep_segments)
+    X, y = training_data(arr, params, name, center, segments)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError(f"{source}: non-finite features or targets for model {name}")
     seed = stage_seed(cfg["seed"], "gradient_model", ALL_MODELS.index(name))
