@@ -1,4 +1,4 @@
-# Issue 11, part 1: oracle ablation of the paper's CR-GPR (each learned component replaced by
+# Oracle ablation of the paper's CR-GPR (each learned component replaced by
 # the constitutive law written in the same features), on every test angle; the all-learned
 # variant is the cr_gpr rollouts themselves.
 

@@ -1,4 +1,4 @@
-# Pipeline variants (issue 11; crgpr.commands.variants): the faithful CR-GPR pipeline (paper
+# Pipeline variants (crgpr.commands.variants): the faithful CR-GPR pipeline (paper
 # Sec. III-B steps 1-4, then the metrics) rerun with a config overlay (variants.definitions) by
 # the main rules themselves (`use rule`: same scripts, same rule functions), under
 # results/variants/{variant}/, with each main rule's params keys read from the overlaid config.
