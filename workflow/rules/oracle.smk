@@ -12,12 +12,20 @@ rule oracle_ablation:
         gt_tests=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
         learned=expand(f"{RESULTS}/rollouts/cr_gpr/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
     output:
-        table=f"{RESULTS}/tables/oracle_ablation.csv",
-        pointwise=f"{RESULTS}/tables/oracle_pointwise.csv",
+        table=report(
+            f"{RESULTS}/tables/oracle_ablation.csv",
+            caption="../report/oracle_table.rst",
+            category="Deciding the paper's CR-GPR",
+        ),
+        pointwise=report(
+            f"{RESULTS}/tables/oracle_pointwise.csv",
+            caption="../report/oracle_pointwise.rst",
+            category="Deciding the paper's CR-GPR",
+        ),
         figure=report(
             f"{RESULTS}/figures/oracle_ablation.png",
             caption="../report/oracle_ablation.rst",
-            category="CR-GPR (Tables I, II, IV)",
+            category="Deciding the paper's CR-GPR",
         ),
     params:
         rod=config["rod"],
