@@ -97,8 +97,8 @@ PROCESS_WORDS = {
                     r"|\b(?:No[v]|De[c]) \d{1,2}\b|\b202[4-9]-\d\d-\d\d\b",
     "scratch path": r"(?<!-d )/tm[p]/",  # cited as a source (a command's run directory is fine)
 }
-SCANNED = ["README.md", "environment-notes.md", "config.yaml", "docs", "workflow", "tests", "src",
-           "benchmarks"]
+SCANNED = ["README.md", "environment-notes.md", "ARCHITECTURE.md", "config.yaml", "pyproject.toml",
+           "docs", "workflow", "tests", "src", "benchmarks", "profiles", "results/tables"]
 # (file, text on the matching line): each a use of the words that is not about how the work went
 ALLOWED = [
     ("tests/test_cluster.py", "2026]"),  # timestamps of a sample Slurm log
