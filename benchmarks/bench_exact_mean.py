@@ -1,4 +1,4 @@
-"""Issue 11, part 3: speed and accuracy of the exact-mean rollout (``rollout_mean: exact``).
+"""Speed and accuracy of the exact-mean rollout (``rollout_mean: exact``).
 
     python benchmarks/bench_exact_mean.py [--models results/models/gp] [--features paper]
         [--angle 125] [--every 20] [--out CSV]

@@ -1,4 +1,4 @@
-"""Benchmark: one ``crgpr learn`` on a 2 s, 250 Hz, 26-node camera record (issue 14 target 2 min).
+"""Benchmark: one ``crgpr learn`` on a 2 s, 250 Hz, 26-node camera record (target 2 min).
 
     python benchmarks/bench_learn.py [--features objective] [--prefilter gp] [--noise-mm 1]
 

@@ -1,9 +1,9 @@
-"""How well `crgpr learn`'s state reconstruction recovers the curvature (issue 13).
+"""How well `crgpr learn`'s state reconstruction recovers the curvature.
 
 Makes the camera record of a ground-truth file exactly as rule ``camera_data`` does (the
 config's frame rate and seed), rebuilds the state with ``learning.camera.positions_to_state``
 (config ``camera.learn``; ``--order`` overrides ``angle_penalty_order``, ``none`` runs the
-unclamped smoother of the discovery workflow, the reconstruction before 25 Nov) and prints the
+unclamped smoother of the discovery workflow, without the clamp-angle penalty) and prints the
 clamp-angle error, per segment the least-squares slope of the rebuilt curvature against the
 simulator's (through the origin), its rms error and the fit's own noise estimate.
 

@@ -1,4 +1,4 @@
-"""Issue 11, part 2: the collocated ground truth against the variational one, and whether the
+"""The collocated ground truth against the variational one, and whether the
 paper's features are exact for it.
 
     python benchmarks/collocated_vs_variational.py [--config config.yaml] [--angles 85 60 ...]

@@ -1,4 +1,4 @@
-"""Issue 13 diagnosis: which gradient GP's posterior makes a method's trajectory band wide.
+"""Diagnosis: which gradient GP's posterior makes a method's trajectory band wide.
 
 The stored posterior samples of one component (or group) are rolled out with every other
 component at its rollout mean (``LearnedRod`` with the mean evaluators of ``results/models``;

@@ -1,4 +1,4 @@
-"""Issue 13 diagnosis: function-level calibration of obj_m under other bases / noise floors.
+"""Diagnosis: function-level calibration of obj_m under other bases / noise floors.
 
 Refits obj_m (``gradient_models.fit_model``, the pipeline's fit and DTC rollout approximation) on
 the 85 deg prefilter data with ``basis[:sigma_n_min]`` from the command line, and scores it at

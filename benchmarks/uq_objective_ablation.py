@@ -1,4 +1,4 @@
-"""Issue 13 diagnosis: which learned component of ``cr_gpr_objective`` carries its trajectory error.
+"""Diagnosis: which learned component of ``cr_gpr_objective`` carries its trajectory error.
 
 Mean rollouts (``learning.learned.rollout``, the pipeline's own model and integrator) of the
 ``cr_gpr_objective`` model in ``results/models/gp`` with one group of learned components replaced

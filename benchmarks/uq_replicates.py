@@ -1,8 +1,8 @@
-"""Issue 13: calibration judged over independent truths (replicate training trajectories).
+"""Calibration judged over independent truths (replicate training trajectories).
 
 One training trajectory gives ONE realisation of the fitted law's error, shared by every test
 angle, so a calibrated model's angle-mean coverage of that one truth scatters with sd 0.11-0.16
-(``calibrated_coverage_sd`` of uq_coverage.csv, uq5 notes) and cannot resolve the issue's ±0.05.
+(``calibrated_coverage_sd`` of uq_coverage.csv) and cannot resolve a coverage target of ±0.05.
 Each replicate here is the same pipeline (config.yaml with only ``angles.train_deg`` changed,
 so a different training trajectory and a different fitted law) run to ``uq_coverage.csv``; the
 statistic is the mean over replicates of the six-angle mean theta coverage. Its calibrated
@@ -15,7 +15,7 @@ correlation between replicates of the mean models' theta error (mean rollout - t
 time, node and angle) so that this can be checked: near 1, the replicates are one truth again.
 
     python benchmarks/uq_replicates.py --method cr_gpr_objective --out benchmarks/uq/replicates.csv \
-        --make 80 75 70 --workdir /tmp/rep .
+        --make 80 75 70 --workdir replicates .
 
 RUN_DIR (positional, e.g. ``.`` for the main run): a workflow directory with
 results/uq/{method}/{angle}.parquet, results/rollouts/{method}/{angle}.parquet and

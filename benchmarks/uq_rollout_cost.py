@@ -1,4 +1,4 @@
-"""Issue 13, speed: CPU cost of one sampled (UQ) rollout, by function (cProfile).
+"""Speed: CPU cost of one sampled (UQ) rollout, by function (cProfile).
 
 Loads the stored posterior samples of a method (``results/uq/<method>/samples/*.npz``, made by
 the ``uq_samples`` rule), integrates the S sampled rods for ``n_steps`` steps of the config's dt

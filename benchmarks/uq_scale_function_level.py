@@ -1,4 +1,4 @@
-"""Issue 13 diagnosis: each posterior-scale statistic of ``heldout_block_scale`` against the
+"""Diagnosis: each posterior-scale statistic of ``heldout_block_scale`` against the
 truth at the test states (function level; nothing here is fitted to the truth).
 
 For the saved gradient models of a method (``results/models/gp/{model}``): the scales c of
@@ -7,7 +7,7 @@ ground-truth states of the test angles (``n_times`` times each) the error of the
 mean against the analytic rod's value (``crgpr.uq.calibration.true_targets``), z = error /
 (c x posterior sd), and per statistic the median |z| (calibrated: 0.674) and 95 % coverage.
 
-    python benchmarks/uq_scale_function_level.py --results /tmp/uq4/results obj_m obj_n1
+    python benchmarks/uq_scale_function_level.py --results results obj_m obj_n1
 """
 
 from __future__ import annotations

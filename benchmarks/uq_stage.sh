@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 13's speed target: the whole UQ stage (every uq.methods entry, the six test angles, the
+# The UQ speed target: the whole UQ stage (every uq.methods entry, the six test angles, the
 # default S) timed on its own, from the models and mean rollouts of a complete run.
 #
 #   bash benchmarks/uq_stage.sh WORKDIR [CONFIG]

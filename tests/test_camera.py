@@ -1,4 +1,4 @@
-"""Learning CR-GPR from camera data (issue 14): the state from positions, crgpr learn, rollouts."""
+"""Learning CR-GPR from camera data: the state from positions, crgpr learn, rollouts."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Grey-box camera learning (issue 14): stretch and shear laws from the nominal rod, bending learned."""
+"""Grey-box camera learning: stretch and shear laws from the nominal rod, bending learned."""
 
 from __future__ import annotations
 

@@ -233,15 +233,20 @@ def test_ci_targets_are_a_pinn_free_sub_dag_of_all_through_every_stage(tmp_path)
 
 
 def test_slurm_script_skips_with_one_line_where_it_cannot_run(tmp_path):
-    """Not root: exit 77 with one SKIPPED line, before it installs or starts anything."""
-    script = ROOT / "workflow" / "cluster" / "test-slurm.sh"
-    cmd = ["bash", str(script)]
+    """Not root: exit 77 with one SKIPPED line, before it installs or starts anything.
+
+    As root the script runs as user nobody, who may not be able to read the checkout (a clone
+    in a private directory): the script is read here and fed to bash on stdin, run from ``/``,
+    so the test does not depend on where the checkout lives."""
+    script = (ROOT / "workflow" / "cluster" / "test-slurm.sh").read_text()
+    cmd = ["bash", "-s"]
     if os.geteuid() == 0:
         if shutil.which("setpriv") is None:
             pytest.skip("root without setpriv: cannot drop to another user")
         cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
     env = {**os.environ, "CRGPR_SLURM_SCRATCH": str(tmp_path)}
-    res = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(cmd, input=script, cwd="/", env=env, capture_output=True, text=True,
+                         timeout=60)
     assert res.returncode == 77, res.stdout + res.stderr
     skipped = [line for line in res.stdout.splitlines() if "SKIPPED" in line]
     assert skipped == ["test-slurm: SKIPPED: needs root (apt-get, munged, slurmd)"], res.stdout

@@ -1,4 +1,4 @@
-"""The collocated nodal finite-difference schemes (physics/collocated.py; issue 11 part 2).
+"""The collocated nodal finite-difference schemes (physics/collocated.py).
 
 'collocated' (the config's simulation.scheme: collocated) has nodal couples from central-difference
 strains, compact bending and flux-form forces; 'collocated_nodal' puts every resultant at the

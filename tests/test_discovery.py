@@ -218,15 +218,15 @@ def runs(cfg, tmp_path_factory):
     return get
 
 
-# Measured misses on these 0.8 s records. The joint initial-state fit (discovery2) let the
+# Measured misses on these 0.8 s records. The joint initial-state fit let the
 # initial state absorb most of a weak effect on a short record (viscous drag: 0.099 rad from
 # the true release, 0.018 rad from the fitted initial state), so the nominal gap fell below
-# the "none" threshold; the hidden-by-initial-state continuation (disc3, selection.entry_threshold)
-# names viscous_drag, rest_curvature and base_compliance again (measured 23 Nov: 0.0401, 1.034,
+# the "none" threshold; the hidden-by-initial-state continuation (selection.entry_threshold)
+# names viscous_drag, rest_curvature and base_compliance again (measured: 0.0401, 1.034,
 # 0.235; on rest_curvature a stiffness_gradient proxy entered first and left the model at its
 # floor: the continuation added rest_curvature, backward elimination dropped the proxy).
-# internal_damping is still missed (measured with the continuation, 23 Nov): the nominal gap is
-# hidden (0.0189 rad, floor 0.0110; 0.0096 with the disc5 floor) and the cut-moment residual
+# internal_damping is still missed (measured with the continuation): the nominal gap is
+# hidden (0.0189 rad, floor 0.0110; 0.0096 with the two-grid floor) and the cut-moment residual
 # shows no candidate (Kelvin-Voigt BIC gain -1.3: the curvature rate of noisy camera angles), so
 # there is nothing to try.
 KNOWN_MISSES: dict[str, str] = {
@@ -257,7 +257,7 @@ def test_hidden_effect_is_named_and_closes_the_gap(runs, case, cfg):
     assert math.isfinite(top["coefficient_std"]) and top["coefficient_std"] > 0
 
 
-@pytest.mark.xfail(reason="0.8 s record (disc3, 23 Nov): tip_mass 0.0059, viscous_drag 0.091 (air_drag "
+@pytest.mark.xfail(reason="0.8 s record: tip_mass 0.0059, viscous_drag 0.091 (air_drag "
                           "entered, the replacement step swapped it, delta BIC 11.7) and nonlinear_stiffness "
                           "0.00077 named: stiffness_scale fitted better (RMSE 0.0116, delta BIC 222.7) but "
                           "failed the sign test against the joint residual regression. Full config: "
@@ -271,7 +271,7 @@ def test_three_effects_at_once_are_all_named_and_no_fourth(runs):
         assert e["coefficient"] == pytest.approx(truth["effects"][e["name"]], rel=0.35)
 
 
-@pytest.mark.xfail(reason="0.8 s record (disc3, 23 Nov): tip_mass 0.0059 (true 0.01) and "
+@pytest.mark.xfail(reason="0.8 s record: tip_mass 0.0059 (true 0.01) and "
                           "nonlinear_stiffness instead of stiffness_scale, which fits better (delta BIC "
                           "222.7 on entry, 120.3 as a replacement) but fails the sign test (joint cut-moment "
                           "regression); the full config's 1 s record gives tip_mass 0.0097 and "
@@ -286,7 +286,7 @@ def test_three_effects_name_no_fourth_and_the_stiffness(runs):
     assert named["stiffness_scale"] == pytest.approx(truth["effects"]["stiffness_scale"], rel=0.35)
 
 
-@pytest.mark.xfail(reason="0.8 s record (disc5, 23 Nov): only tip_mass named (0.0097); with it the model "
+@pytest.mark.xfail(reason="0.8 s record: only tip_mass named (0.0097); with it the model "
                           "is within min_gap_rad of its floor (RMSE 0.0226, floor 0.0141, of which "
                           "discretisation 0.0028 nominal) and the cut-moment residual's drag evidence is "
                           "below bic_min_improvement (air_drag BIC gain 4.7, viscous_drag 3.1), so the "
@@ -326,11 +326,11 @@ def test_out_of_library_disturbance_is_unexplained(runs):
     assert len(w["s_m"]) == 2 and len(w["time_window_s"]) == 2 and w["state_group"]
 
 
-@pytest.mark.xfail(reason="REGRESSION of the joint initial-state fit (discovery2): on this 0.8 s "
+@pytest.mark.xfail(reason="REGRESSION of the joint initial-state fit: on this 0.8 s "
                           "record the verdict is 'none' (the whole-record initial state absorbs "
                           "part of the defect: gap 0.0209, floor 0.0100, excess 0.0184 < min_gap_rad; "
-                          "disc5, 23 Nov); on the full config's 1 s record it is 'unexplained', located "
-                          "at 0.15 m", strict=False)
+                          "with the two-grid floor); on the full config's 1 s record it is "
+                          "'unexplained', located at 0.15 m", strict=False)
 def test_localized_stiffness_defect_is_unexplained(runs):
     """A local defect is not absorbed by a global stiffness candidate."""
     truth, res = runs("stiffness_defect")
@@ -342,7 +342,7 @@ def test_localized_stiffness_defect_is_unexplained(runs):
 @pytest.mark.xfail(reason="located at 0.15 m (d = 0.59) on the full config's 1 s record, but on "
                           "this 0.8 s, 200 Hz record the profile peaks at the free tip (0.49 m): "
                           "the angle reconstruction's systematic curvature error there is not "
-                          "removed by the instrument (environment-notes, discovery2)", strict=False)
+                          "removed by the instrument (environment-notes.md, missing physics)", strict=False)
 def test_localized_stiffness_defect_is_located_along_s(runs):
     """The unexplained defect is located by the per-segment stiffness error (instrumental-
     variable regression of the cut-moment residual), with its depth and its time window."""
@@ -369,7 +369,7 @@ def test_camera_record_with_markers_drops_outliers_and_mid_motion_start(runs):
 
 
 def test_one_bad_frame_does_not_flip_the_verdict(runs):
-    """A marker at the origin for one sample (issue 12) is excluded and reported."""
+    """A marker at the origin for one sample is excluded and reported."""
     _, clean = runs("tip_mass")
 
     def one_bad(df):
@@ -445,7 +445,7 @@ def test_internal_damping_is_named_on_the_configs_record(record_runs):
 
 def test_two_effects_are_named_on_the_configs_record(record_runs):
     """A tip mass with viscous drag on the workflow's 1 s record: both named with their
-    coefficients (before disc5 the floor's discretisation estimate, 6-10x too large, left the
+    coefficients (with a one-grid floor the discretisation estimate, 6-10x too large, left the
     tip-mass model "at its floor" and the drag was never tried)."""
     truth, res = record_runs("tip_mass_and_drag")
     assert res["verdict"] == "effect_found", res["best_attempt"]

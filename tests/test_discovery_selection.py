@@ -297,7 +297,7 @@ def test_discretisation_floor_is_the_fitted_gap_and_ignores_spurious_initial_rat
     two discretisations from the exact release (the fit
     absorbs part of it), and is not inflated by a spurious initial rate mode in the measured
     state or in the fitted corrections it starts from: one fitted state run on both grids
-    (the estimator before disc5) inflates it several times."""
+    (a one-grid estimator) inflates it several times."""
     from crgpr.discovery.kinematics import Kinematics, marker_matrix
     from crgpr.discovery.selection import TrajectoryFitter, discretisation_error, rod_state, run_model
     from crgpr.physics.rod import straight_rod

@@ -1,5 +1,5 @@
 """gp.KernelMean.exact: a fitted GP's exact posterior mean over all n points, with the kernel
-sums truncated below tol sigma_f^2 on a cell grid (issue 11, part 3)."""
+sums truncated below tol sigma_f^2 on a cell grid."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Oracle components of the paper's features (issue 11, part 1): where the constitutive law is
+"""Oracle components of the paper's features: where the constitutive law is
 expressible in the inputs it must equal the discrete rod's targets to round-off."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The paper-hyperparameter model (issue 11, part 3, ``cr_gpr_paper_hyp``): Table II's sigma_f,
+"""The paper-hyperparameter model (``cr_gpr_paper_hyp``): Table II's sigma_f,
 ell, sigma_n mapped onto our scaling, trained by the pipeline's own function, loaded as the
 exact posterior mean and rolled out; and the bounded hyperparameter search of the fitted models."""
 

@@ -1,4 +1,4 @@
-"""Trajectory UQ of a `crgpr learn` model directory (issue 13 for the camera method of issue 14):
+"""Trajectory UQ of a `crgpr learn` model directory (the camera method):
 its learned GPs sampled, its nominal laws kept, rolled out through the mean model's assembly
 (``commands.learn.learned_components``) and rollout; a large 1D law sampled sparsely and
 tabulated on the rollout's grid; the rows of an odd law kept with their reflections."""

@@ -1,4 +1,4 @@
-"""Pipeline variants (issue 11): a named config overlay reruns the faithful CR-GPR pipeline.
+"""Pipeline variants: a named config overlay reruns the faithful CR-GPR pipeline.
 
 The overlay is deep-merged and the result validated like config.yaml; a bad overlay stops the
 workflow with one line naming the key (exit 2); a variant reruns only the stages whose config

@@ -18,6 +18,7 @@ COMMAND_MODULES: list[str] = [
     "crgpr.commands.report",
     "crgpr.commands.discovery",
     "crgpr.commands.learn",
+    "crgpr.commands.config_doc",
 ]
 
 

@@ -1,4 +1,4 @@
-# Learning CR-GPR from camera data (issue 14, beyond the paper): the camera version of the
+# Learning CR-GPR from camera data (beyond the paper): the camera version of the
 # training trajectory (positions only, noise, the camera's frame rate), `crgpr learn` on it,
 # method cr_gpr_objective_camera on the test angles (in `all`), and the noise ablation the paper
 # claims (target `sweeps`, not in `all`).
@@ -149,12 +149,12 @@ rule camera_ablation:
         table=report(
             f"{RESULTS}/tables/noise_ablation.csv",
             caption="../report/noise_ablation.rst",
-            category="Camera data (issue 14)",
+            category="Camera data",
         ),
         figure=report(
             f"{RESULTS}/figures/noise_ablation.png",
             caption="../report/noise_ablation.rst",
-            category="Camera data (issue 14)",
+            category="Camera data",
         ),
     params:
         noise_mm=CAM_ABL["noise_mm"],

@@ -1,4 +1,4 @@
-# Shared paths and helpers of every rule file.
+# Shared paths and functions of every rule file.
 from pathlib import Path
 
 from crgpr.commands.deps import code_closure as _code_closure

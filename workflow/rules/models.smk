@@ -85,7 +85,11 @@ rule paper_hyp_lml:
         models=expand(f"{RESULTS}/models/gp/{{m}}.json",
                       m=["q_x", "q_y", "dH_dtheta", "dH_dp_x", "dH_dp_y", "dH_dp_theta"]),
     output:
-        f"{RESULTS}/tables/paper_hyp_lml.csv",
+        report(
+            f"{RESULTS}/tables/paper_hyp_lml.csv",
+            caption="../report/paper_hyp_lml.rst",
+            category="Deciding the paper's CR-GPR",
+        ),
     log:
         "logs/tables/paper_hyp_lml.log",
     benchmark:

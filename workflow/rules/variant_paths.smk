@@ -1,4 +1,4 @@
-# Pipeline variants (issue 11; rules in variants.smk): each variant's overlaid config and where
+# Pipeline variants (rules in variants.smk): each variant's overlaid config and where
 # each of its stages' files lie (its own under results/variants/{variant}/, or the main run's
 # when the stage's config values and inputs equal the main run's).
 

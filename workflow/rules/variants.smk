@@ -1,4 +1,4 @@
-# Pipeline variants (issue 11; crgpr.commands.variants): the faithful CR-GPR pipeline (paper
+# Pipeline variants (crgpr.commands.variants): the faithful CR-GPR pipeline (paper
 # Sec. III-B steps 1-4, then the metrics) rerun with a config overlay (variants.definitions) by
 # the main rules themselves (`use rule`: same scripts, same rule functions), under
 # results/variants/{variant}/, with each main rule's params keys read from the overlaid config.
@@ -125,11 +125,15 @@ rule crgpr_sensitivity:
         code=code_closure("crgpr_sensitivity.py"),
         accuracy=[v_accuracy(v) for v in _SENS],
     output:
-        table=f"{RESULTS}/tables/crgpr_sensitivity.csv",
+        table=report(
+            f"{RESULTS}/tables/crgpr_sensitivity.csv",
+            caption="../report/crgpr_sensitivity.rst",
+            category="Deciding the paper's CR-GPR",
+        ),
         figure=report(
             f"{RESULTS}/figures/crgpr_sensitivity.png",
             caption="../report/crgpr_sensitivity.rst",
-            category="CR-GPR (Tables II, III, V)",
+            category="Deciding the paper's CR-GPR",
         ),
     params:
         cfg=cfg_params("angles.test_deg", *(f"variants.definitions.{v}" for v in _SENS)),

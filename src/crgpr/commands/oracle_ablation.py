@@ -1,4 +1,4 @@
-"""Rule ``oracle_ablation`` (issue 11, part 1): which learned component breaks the paper's CR-GPR?
+"""Rule ``oracle_ablation``: which learned component breaks the paper's CR-GPR?
 
 Variants of the paper's model (features 'paper', Sec. III-B step 3, GPR 1-6), each rolled out
 by ``learned.LearnedRod`` + ``integrator.run_hamiltonian`` on every test angle:

@@ -134,7 +134,7 @@ def paper_tables(values: str, accuracy: str | None, hyper: str | None, timing: s
                  noise: str | None = None) -> None:
     """Rule ``paper_tables``: every number and claim of the paper beside ours (csv, md, claims).
 
-    ``noise``: ``noise_ablation.csv`` of the ``sweeps`` target (issue 14). The rule leaves it
+    ``noise``: ``noise_ablation.csv`` of the ``sweeps`` target. The rule leaves it
     out (the ablation is not part of ``all``), so the claims on it are left out of the tables
     (``report.paper.sweep_claims``); ``crgpr paper-tables`` after ``snakemake sweeps`` adds them.
     """
@@ -143,7 +143,7 @@ def paper_tables(values: str, accuracy: str | None, hyper: str | None, timing: s
 
 def paper_claims_sweeps(values: str, noise: str, out_claims: str) -> None:
     """Rule ``paper_claims_sweeps`` (target ``sweeps``): the paper's claims on the noise
-    ablation (issue 14), which ``paper_tables`` leaves out, evaluated on ``noise_ablation.csv``."""
+    ablation, which ``paper_tables`` leaves out, evaluated on ``noise_ablation.csv``."""
     paper_mod.build_sweep_claims(values, noise, out_claims)
 
 

@@ -1,4 +1,4 @@
-"""Reports of the pipeline variants (issue 11): rules ``variant_metrics`` and ``crgpr_sensitivity``.
+"""Reports of the pipeline variants: rules ``variant_metrics`` and ``crgpr_sensitivity``.
 
 Algorithms: ``crgpr.report.metrics`` (the accuracy metrics of every method),
 ``crgpr.report.sensitivity`` (the sensitivity table and figure). The variants themselves:

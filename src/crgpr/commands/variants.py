@@ -1,4 +1,4 @@
-"""Pipeline variants (issue 11): the faithful CR-GPR pipeline rerun under a config overlay.
+"""Pipeline variants: the faithful CR-GPR pipeline rerun under a config overlay.
 
 A variant is an entry of ``variants.definitions`` in config.yaml: a rollout method (a key of
 ``rollouts.methods``: its prefilter and feature set) and an ``overlay``, a partial configuration

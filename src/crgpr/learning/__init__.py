@@ -5,5 +5,5 @@
 * ``gradient_models``: the gradient GPs of Table II (step 3);
 * ``learned``: the learned rod H_z_hat and its rollouts (step 4, eq. (17));
 * ``oracle``: the constitutive law written in the paper's features (components for LearnedRod,
-  issue 11's oracle ablation).
+  the oracle ablation).
 """

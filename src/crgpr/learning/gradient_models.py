@@ -85,7 +85,7 @@ PAPER_TABLE2: dict[str, dict[str, Any]] = {
 
 def paper_hyperparameters(name: str, x_scale: np.ndarray, y_scale: float, ard: bool,
                           inputs_standardised: bool = False) -> dict[str, Any]:
-    """Table II's sigma_f, ell, sigma_n of model ``name`` in our standardised units (issue 11).
+    """Table II's sigma_f, ell, sigma_n of model ``name`` in our standardised units.
 
     Read in ORIGINAL units (MATLAB fitrgp's default, Standardize = false): ell_std = ell / x_scale,
     sigma_f_std = sigma_f / y_scale, sigma_n_std = sigma_n / y_scale. ``inputs_standardised``:

@@ -1,4 +1,4 @@
-"""Grey-box CR-GPR: constitutive laws taken from the nominal rod instead of learned (issue 14).
+"""Grey-box CR-GPR: constitutive laws taken from the nominal rod instead of learned.
 
 Camera positions resolve bending but not always stretch and shear: at 1 mm noise on 2 cm
 segments the axial strain nu1 - 1 (~1e-3) and the shear nu2 (~5e-3) are far below the strain

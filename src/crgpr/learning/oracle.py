@@ -1,4 +1,4 @@
-"""Oracle components: the best analytic function of the paper's OWN features (issue 11, part 1).
+"""Oracle components: the best analytic function of the paper's OWN features.
 
 Each learned component of the paper's CR-GPR model (Sec. III-B step 3, GPR 1-6, eqs. (14)-(16))
 is replaced by the rod's constitutive law (eqs. (5), (6), (10)) written in the inputs that GP

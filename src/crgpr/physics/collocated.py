@@ -1,5 +1,5 @@
 """Collocated nodal finite-difference discretisations of the planar Cosserat rod (paper eqs. (4)-(10),
-Sec. III-A; issue 11 part 2): the discretisations whose stencils are the paper's GPR 3 inputs
+Sec. III-A): the discretisations whose stencils are the paper's GPR 3 inputs
 (eq. (15): theta_i, theta_{i-1}, theta_{i+1}, d2theta/ds2_i, dx/ds_i, dy/ds_i).
 
 Grid and state as in rod.py (nodes i = 0..N, s_i = i ds, node 0 clamped, node N free), same

@@ -117,7 +117,7 @@ def energy(learned: pd.DataFrame, gt_energy: pd.DataFrame, out: str | Path, meth
 
 def oracle_ablation_figure(table: pd.DataFrame, pointwise: pd.DataFrame, out: str | Path,
                            paper_mean: float = 0.222) -> None:
-    """Issue 11 oracle ablation: RMSE(theta) per variant (left), pointwise errors / target std (right)."""
+    """Oracle ablation: RMSE(theta) per variant (left), pointwise errors / target std (right)."""
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [1.5, 1]})
     order = list(dict.fromkeys(table["variant"]))
     for k, v in enumerate(order):

@@ -39,7 +39,7 @@ class Sources:
     hyper: pd.DataFrame | None = None
     timing: pd.DataFrame | None = None
     uq: pd.DataFrame | None = None
-    noise: pd.DataFrame | None = None  # results/tables/noise_ablation.csv (issue 14)
+    noise: pd.DataFrame | None = None  # results/tables/noise_ablation.csv (camera sweeps)
 
 
 def load_values(path: str | Path) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Sensitivity of the faithful CR-GPR pipeline to what the paper leaves open (issue 11, part 4).
+"""Sensitivity of the faithful CR-GPR pipeline to what the paper leaves open.
 
 One row per pipeline variant (``variants.sensitivity``): the paper's pipeline with one choice
 changed (Poisson ratio, angle wrapping, n_train, n_hyper, sigma_n floors, the prefilter),
