@@ -155,8 +155,11 @@ class Material:
 
 @njit(cache=True)
 def _log_cosh(x):
-    """ln cosh x without overflow."""
+    """ln cosh x, accurate near 0 (ln(1 + sinh^2) / 2) and without overflow for large |x|."""
     a = abs(x)
+    if a < 20.0:
+        sh = math.sinh(a)
+        return 0.5 * math.log1p(sh * sh)
     return a + math.log1p(math.exp(-2.0 * a)) - math.log(2.0)
 
 
