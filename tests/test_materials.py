@@ -289,12 +289,19 @@ def test_bad_material_config_names_the_key(material, key):
     assert "\n" not in str(exc.value)
 
 
-def test_collocated_scheme_refuses_material_laws():
+def test_collocated_scheme_refuses_nonlinear_laws_and_takes_EI_profiles():
+    """The collocated schemes refuse nonlinear laws and curvature profiles (one line naming
+    rod.material) and take EI(s) profiles and the defect (segment stiffnesses)."""
     with pytest.raises(ConfigError, match=r"rod\.material: the 'collocated' scheme"):
         load_config(CONFIG, {"rod": {"material": {"bending_law": "saturating", "saturation_moment": 1.0}},
                              "simulation": {"scheme": "collocated"}})
-    with pytest.raises(ValueError, match="linear material only"):
-        simulate(85.0, _rod("graded"), paper_sim(t_end=0.01, scheme="collocated"))
+    for name in ("exponential", "cubic_stretch", "rest_curvature"):
+        with pytest.raises(ValueError, match="linear laws and a uniform rest curvature only"):
+            simulate(85.0, _rod(name), paper_sim(t_end=0.01, scheme="collocated_nodal"))
+    sim = paper_sim(t_end=0.5, scheme="collocated")
+    uniform = simulate(85.0, paper_rod(), sim)
+    graded = simulate(85.0, _rod("graded"), sim)
+    assert np.abs(graded.q[..., 2] - uniform.q[..., 2]).max() > 0.01  # the profile is felt [rad]
 
 
 def test_cli_bad_material_is_one_line_exit_2(tmp_path, capsys):

@@ -403,9 +403,9 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     law = np.asarray(rod_args[5])
-    if scheme != "variational" and (law.any() or np.any(rod_args[4])):
-        raise ValueError(f"rod.material: the {scheme!r} scheme implements the linear material only; "
-                         "use simulation.scheme: variational for material laws")
+    if scheme != "variational" and (law[0] != 0.0 or law[2] != 0.0 or np.any(rod_args[4])):
+        raise ValueError(f"rod.material: the {scheme!r} scheme implements linear laws and a uniform "
+                         "rest curvature only; use simulation.scheme: variational for this material")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")

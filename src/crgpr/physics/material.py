@@ -102,6 +102,14 @@ class Material:
         """True for the linear, uniform, straight material (the defaults)."""
         return self == Material()
 
+    @property
+    def needs_variational(self) -> bool:
+        """True when a nonlinear bending or stretch law or a rest-curvature profile is set: the
+        collocated schemes do not implement these (EI(s) profiles and the defect they take, as
+        segment stiffnesses)."""
+        return (self.bending_law != "linear" or self.stretch_law != "linear"
+                or bool(self.rest_curvature_profile))
+
     def law_vector(self) -> np.ndarray:
         """The kernels' law argument [bending id, its parameter, stretch id, its parameter]."""
         bend = {"linear": 0.0, "exponential": self.bending_beta, "saturating": self.saturation_moment}

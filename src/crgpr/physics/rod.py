@@ -79,10 +79,11 @@ def segment_rest_curvature(params: RodParams) -> np.ndarray:
 
 
 def check_scheme(params: RodParams, scheme: str) -> None:
-    """Refuse a material the spatial scheme does not implement (collocated: the linear rod)."""
-    if scheme != "variational" and not params.material.is_linear:
-        raise ValueError(f"rod.material: the {scheme!r} scheme implements the linear material only; "
-                         "use simulation.scheme: variational for material laws")
+    """Refuse a material the spatial scheme does not implement (collocated: linear laws,
+    uniform rest curvature; EI(s) profiles and the defect are fine)."""
+    if scheme != "variational" and params.material.needs_variational:
+        raise ValueError(f"rod.material: the {scheme!r} scheme implements linear laws and a uniform "
+                         "rest curvature only; use simulation.scheme: variational for this material")
 
 
 def masses(params: RodParams) -> tuple[np.ndarray, np.ndarray]:
