@@ -228,6 +228,12 @@ def test_kelvin_voigt_is_part_of_the_material_config():
     p = RodParams.from_dict(rod)
     assert p.internal_damping == 3.0e-5
     assert RodParams.from_dict(p.to_dict()) == p
+    # kelvin_voigt: 0 leaves the internal_damping effect as given (crgpr simulate --set, discovery)
+    rod["material"]["kelvin_voigt"] = 0.0
+    assert RodParams.from_dict({**rod, "internal_damping": 2.0e-5}).internal_damping == 2.0e-5
+    rod["material"]["kelvin_voigt"] = 3.0e-5
+    with pytest.raises(ValueError, match="rod.material.kelvin_voigt"):
+        RodParams.from_dict({**rod, "internal_damping": 2.0e-5})
 
 
 # --- boundary conditions and statics --------------------------------------------------------------

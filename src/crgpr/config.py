@@ -161,7 +161,8 @@ def _rod_message(exc: Exception) -> str:
 
 
 def check_material_scheme(params: RodParams, scheme: str, source: str = "config") -> None:
-    """The collocated schemes implement the linear material only (``rod.check_scheme``)."""
+    """The collocated schemes implement linear laws and a uniform rest curvature only
+    (``rod.check_scheme``)."""
     try:
         check_scheme(params, scheme)
     except ValueError as exc:

@@ -135,8 +135,8 @@ class RodParams:
         mid-segment angle); a base spring k adds 2 k / (rho I ds) to the base node's
         rotational row (half a segment of inertia). A material's EI(s) profile raises the
         bending term by its largest factor; the bound is that of the laws' tangent at zero
-        strain (the stiffening laws stiffen further under load). The Kelvin-Voigt damping is integrated
-        by its exact flow (``integrator.kelvin_voigt_propagator``) and sets no bound. Used to
+        strain (the stiffening laws stiffen further under load). The Kelvin-Voigt damping is
+        integrated by its exact flow (``integrator.kelvin_voigt_propagator``) and sets no bound. Used to
         reject a time step that cannot be stable.
         """
         ds = self.ds
@@ -193,8 +193,8 @@ def _material_from_config(value: Any, d: dict[str, Any]) -> Material:
     if not isinstance(value, dict):
         raise TypeError(f"rod.material: expected a mapping, got {type(value).__name__}")
     value = dict(value)
-    if "kelvin_voigt" in value:
-        c = value.pop("kelvin_voigt")
+    c = value.pop("kelvin_voigt", 0.0)
+    if c:  # 0 leaves the internal_damping effect (missing-physics workflow, --set) as given
         if d.get("internal_damping", 0.0) not in (0.0, c):
             raise ValueError("rod.material.kelvin_voigt: conflicts with the internal_damping effect")
         d["internal_damping"] = c
