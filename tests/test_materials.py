@@ -288,6 +288,10 @@ def test_saturating_moment_is_bounded():
     ({"defect_factor": 0.5, "defect_start": 0.6, "defect_end": 0.4}, "rod.material.defect_start"),
     ({"stiffness": 2.0}, "rod.material.stiffness"),
     ({"kelvin_voigt": -1.0}, "rod.material.kelvin_voigt"),
+    ({"bending_beta": 0.1}, "rod.material.bending_beta"),  # a parameter of a law not selected
+    ({"bending_law": "exponential", "bending_beta": 0.1, "saturation_moment": 1.0},
+     "rod.material.saturation_moment"),
+    ({"stretch_stiffening": 10.0}, "rod.material.stretch_stiffening"),
 ])
 def test_bad_material_config_names_the_key(material, key):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")) as exc:

@@ -81,6 +81,12 @@ class Material:
             raise ValueError("rod.material.bending_beta: the exponential law needs beta > 0 [m]")
         if self.bending_law == "saturating" and not self.saturation_moment > 0:
             raise ValueError("rod.material.saturation_moment: the saturating law needs m_s > 0 [N m]")
+        for key, law, owner in (("bending_beta", self.bending_law, "exponential"),
+                                ("saturation_moment", self.bending_law, "saturating"),
+                                ("stretch_stiffening", self.stretch_law, "cubic")):
+            if getattr(self, key) != 0.0 and law != owner:
+                raise ValueError(f"rod.material.{key}: a parameter of the {owner} law, which is not "
+                                 "selected (set it to 0)")
         for key in ("bending_beta", "saturation_moment", "stretch_stiffening", "defect_edge"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v >= 0):
