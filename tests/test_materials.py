@@ -209,6 +209,19 @@ def test_energy_conserved_without_damping(name):
     assert e["kinetic"].max() > 0.02 * abs(e["H"][0])
 
 
+@pytest.mark.parametrize("name", ["saturating", "exponential", "all"])
+def test_energy_error_is_the_integrators_second_order(name):
+    """The energy error is Stormer-Verlet's own: halving dt divides the largest drift of H over
+    0.5 s by 4 (3.5 to 4.5; measured 3.87 to 4.12), so no law leaks or injects energy."""
+    drift = []
+    for dt in (1.0e-4, 5.0e-5):
+        sim = paper_sim(dt=dt, t_end=0.5, record_every=int(round(5e-4 / dt)))
+        tr = simulate(85.0, _rod(name, zeta=0.0), sim)
+        e = energy(tr)
+        drift.append(np.abs(e["H"] - e["H"][0]).max())
+    assert 3.5 < drift[0] / drift[1] < 4.5
+
+
 @pytest.mark.parametrize("name", ["saturating", "rest_curvature", "all"])
 def test_kelvin_voigt_dissipation_closes_the_energy_balance(name):
     """Kelvin-Voigt damping only: H(t) - H(0) = -dissipated(t) (the energy the exact damping
