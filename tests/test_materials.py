@@ -113,6 +113,11 @@ def test_default_material_is_the_linear_kernel_bit_for_bit(effects):
         assert np.array_equal(F, F_ref) and V == V_ref
 
 
+def test_is_linear_means_the_linear_rod():
+    assert Material(defect_edge=0.05, defect_start=0.2).is_linear
+    assert not any(m.is_linear for m in LAWS.values())
+
+
 def test_default_config_rod_has_the_linear_material():
     cfg = load_config(CONFIG)
     assert RodParams.from_dict(dict(cfg["rod"])) == paper_rod()

@@ -105,8 +105,9 @@ class Material:
 
     @property
     def is_linear(self) -> bool:
-        """True for the linear, uniform, straight material (the defaults)."""
-        return self == Material()
+        """True for the linear, uniform, straight material (the defaults' physics; the defect's
+        position and edge do not matter without a defect)."""
+        return not (self.needs_variational or self.stiffness_profile or self.defect_factor != 1.0)
 
     @property
     def needs_variational(self) -> bool:
