@@ -20,6 +20,7 @@ import jsonschema
 import yaml
 
 from crgpr.physics.params import PARAM_FIELDS, RodParams, SimSettings
+from crgpr.physics.rod import check_scheme
 
 
 class ConfigError(ValueError):
@@ -153,12 +154,28 @@ def check_time_grid(params: RodParams, sim: dict[str, Any], source: str = "confi
         raise ConfigError(f"{source}: simulation.t_end_s / simulation.dt_s = {n:g} steps is too many")
 
 
+def _rod_message(exc: Exception) -> str:
+    """``rod: <error>`` unless the error already names its ``rod.`` key."""
+    msg = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    return msg if msg.startswith("rod.") else f"rod: {msg}"
+
+
+def check_material_scheme(params: RodParams, scheme: str, source: str = "config") -> None:
+    """The collocated schemes implement linear laws and a uniform rest curvature only
+    (``rod.check_scheme``)."""
+    try:
+        check_scheme(params, scheme)
+    except ValueError as exc:
+        raise ConfigError(f"{source}: {exc}") from exc
+
+
 def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     """Physical and consistency checks the schema cannot express."""
     try:
         params = rod_params(cfg)
     except (TypeError, ValueError, KeyError) as exc:
-        raise ConfigError(f"{source}: rod: {exc}") from exc
+        raise ConfigError(f"{source}: {_rod_message(exc)}") from exc
+    check_material_scheme(params, cfg["simulation"]["scheme"], source)
     check_time_grid(params, cfg["simulation"], source)
     ang = cfg["angles"]
     clash = sorted(set(ang["test_deg"]) & ({ang["train_deg"]} | set(ang["pinn_train_deg"])))
@@ -312,7 +329,8 @@ def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: f
     try:
         params = RodParams.from_dict({**rod, **effects})
     except (TypeError, ValueError, KeyError) as exc:
-        raise ConfigError(f"{source}: rod: {exc}") from exc
+        raise ConfigError(f"{source}: {_rod_message(exc)}") from exc
+    check_material_scheme(params, str(sim["scheme"]), source)
     check_time_grid(params, sim, source)
     return params, SimSettings(dt=float(sim["dt_s"]), t_end=float(sim["t_end_s"]),
                                record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))

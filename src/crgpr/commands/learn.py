@@ -52,6 +52,7 @@ from crgpr.learning.nominal import (
     strain_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
+from crgpr.learning.rest_curvature import rest_curvature_estimate
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import Trajectory, trajectory_frame
@@ -156,9 +157,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
     odd = None
-    if cam["bending_symmetry"] == "odd" and features == "objective":
+    symmetry = cam["bending_symmetry"]
+    if symmetry != "none" and features == "objective":
         if bend != ["kappa"]:
-            raise ConfigError("camera.learn.bending_symmetry: odd needs camera.learn.bending_inputs: [kappa]")
+            raise ConfigError(f"camera.learn.bending_symmetry: {symmetry} needs "
+                              "camera.learn.bending_inputs: [kappa]")
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
     masks = {n: inner_segments(params.N, trim) for n in trained}
@@ -178,6 +181,13 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
+    if odd is not None and symmetry == "odd_estimated":
+        # the rest curvature from the data (the zero of m(kappa)), not the nominal rod's kappa0
+        X_m, y_m = training_data(arr, params, "obj_m", None, masks.get("obj_m"))
+        try:
+            odd = rest_curvature_estimate(X_m[:, OBJ_M_FEATURES.index("kappa")], y_m)
+        except ValueError as exc:
+            raise ValueError(f"{measured}: camera.learn.bending_symmetry: odd_estimated: {exc}") from exc
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -196,6 +206,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
+                "bending_symmetry": symmetry if features == "objective" else None,
                 "models": trained, **grey,
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}

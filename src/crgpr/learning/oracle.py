@@ -53,7 +53,7 @@ class SegmentResultant:
     """q_x or q_y of GPR 1, 2 from [theta_bar, x', y'] (exact constitutive law)."""
 
     def __init__(self, params: RodParams, axis: int):
-        if params.nonlinear_stiffness or params.stiffness_gradient:
+        if params.nonlinear_stiffness or params.stiffness_gradient or not params.material.is_linear:
             raise ValueError("oracle: only the paper's linear, uniform rod is written in closed form")
         self.params, self.axis = params, axis
 
@@ -67,7 +67,8 @@ class ThetaDerivative:
     """dH/dtheta of GPR 3 from the nodal stencils (see module docstring for the closure)."""
 
     def __init__(self, params: RodParams, mode: str = "rotated"):
-        if params.nonlinear_stiffness or params.stiffness_gradient or params.kappa0:
+        if (params.nonlinear_stiffness or params.stiffness_gradient or params.kappa0
+                or not params.material.is_linear):
             raise ValueError("oracle: only the paper's linear, uniform, straight rod has a closed form")
         if mode not in ("rotated", "nodal"):
             raise ValueError(f"oracle dH_dtheta: unknown mode {mode!r}; expected 'rotated' or 'nodal'")

@@ -2,6 +2,8 @@
 
 Public API:
 * ``RodParams``, ``SimSettings``: the rod's parameters (Table I) and the time grid;
+* ``Material`` (``material``): the rod's constitutive laws, config ``rod.material``
+  (docs/materials.md);
 * ``rod``: the variational discretisation (strains, resultants, ``variational_derivative``);
 * ``collocated``: the collocated nodal finite-difference force kernels (config key
   ``simulation.scheme``; ``SCHEMES``), integrated by the same compiled kernel;
@@ -22,6 +24,7 @@ from crgpr.physics.integrator import (
     run_rod,
     run_verlet,
 )
+from crgpr.physics.material import BENDING_LAWS, STRETCH_LAWS, Material
 from crgpr.physics.params import SCHEMES, RodParams, SimSettings
 from crgpr.physics.rod import (
     STATE_NAMES,
@@ -40,6 +43,7 @@ from crgpr.physics.simulate import (
 )
 
 __all__ = [
+    "BENDING_LAWS", "STRETCH_LAWS", "Material",
     "MAX_SPEED", "REACH", "SCHEMES", "STATE_NAMES", "TRAJECTORY_COLUMNS", "Integration", "RodParams",
     "SimSettings",
     "SimulationDiverged", "Trajectory", "diverged_nodes", "free_mask", "masses", "node_weights",

@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit
 
 from crgpr.physics.collocated import _collocated_forces, _nodal_forces
+from crgpr.physics.material import bend_law, stretch_law
 from crgpr.physics.params import SCHEMES
 from crgpr.physics.rod import _internal_forces
 
@@ -206,10 +207,12 @@ def _kv_tangent(dv, P):
 
 
 @njit(cache=True)
-def _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF):
+def _force_tangent(q, dq, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base,
+                   dth_base, dF):
     """Directional derivatives dF (m, N+1, 3) of the variational elastic forces
-    (``rod._internal_forces``) at q along the directions dq (m, N+1, 3); ``dth_base`` (m,):
-    the directions' change of the base spring's rest angle (the initial base angle)."""
+    (``rod._internal_forces``, same material arguments; the laws' tangents of ``material``) at q
+    along the directions dq (m, N+1, 3); ``dth_base`` (m,): the directions' change of the base
+    spring's rest angle (the initial base angle)."""
     n = q.shape[0] - 1
     m = dq.shape[0]
     for a in range(m):
@@ -225,10 +228,10 @@ def _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base
         s = math.sin(tb)
         nu1 = c * ex + s * ey
         nu2 = -s * ex + c * ey
-        dk = (q[j + 1, 2] - q[j, 2]) / ds - kappa0
-        n1 = EA * (nu1 - nu1_0)
+        dk = (q[j + 1, 2] - q[j, 2]) / ds - (kappa0 + kap_seg[j])
+        n1, _, dn1_de = stretch_law(law, EA, nu1 - nu1_0)
         n2 = GA * (nu2 - nu2_0)
-        dmb_ddk = EI_seg[j] * (1.0 + 3.0 * b_nl * dk * dk)
+        _, _, dmb_ddk = bend_law(law, EI_seg[j], dk, b_nl)
         for a in range(m):
             dex = (dq[a, j + 1, 0] - dq[a, j, 0]) / ds
             dey = (dq[a, j + 1, 1] - dq[a, j, 1]) / ds
@@ -237,7 +240,7 @@ def _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base
             dsn = c * dtb
             dnu1 = dc * ex + c * dex + dsn * ey + s * dey
             dnu2 = -dsn * ex - s * dex + dc * ey + c * dey
-            dn1 = EA * dnu1
+            dn1 = dn1_de * dnu1
             dn2 = GA * dnu2
             dmb = dmb_ddk * (dq[a, j + 1, 2] - dq[a, j, 2]) / ds
             dqx = dn1 * c + n1 * dc - dn2 * s - n2 * dsn
@@ -255,20 +258,22 @@ def _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base
 
 
 @njit(cache=True)
-def _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
+def _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
     """Elastic force kernel of the spatial scheme, index into ``SCHEMES`` (0: variational,
-    rod.py; 1: collocated, 2: collocated_nodal, collocated.py)."""
+    rod.py; 1: collocated, 2: collocated_nodal, collocated.py: the linear material only, so
+    they do not take ``kap_seg``, ``law``; ``run_rod`` refuses other materials for them)."""
     if scheme == 1:
         return _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     if scheme == 2:
         return _nodal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
-    return _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    return _internal_forces(q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base,
+                            th_base, F)
 
 
 @njit(cache=True)
-def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kappa0,
-                nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v, out_d, kv,
-                scheme, dq, dv, out_dq):
+def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kap_seg, law,
+                kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v,
+                out_d, kv, scheme, dq, dv, out_dq):
     """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step.
 
     ``dq``, ``dv`` (m, N+1, 3): m directions of the initial state, propagated by the tangent-
@@ -281,9 +286,10 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
     dth_base = np.empty(m)  # the base spring's rest angle is the initial base angle
     for a in range(m):
         dth_base[a] = dq[a, 0, 2]
-    _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+    _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
     if m > 0:
-        _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF)
+        _force_tangent(q, dq, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base,
+                           dF)
         out_dq[0] = dq
     diss = 0.0
     out_q[0] = q
@@ -316,13 +322,14 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
                 dq[a, i, 0] += dt * dv[a, i, 0]
                 dq[a, i, 1] += dt * dv[a, i, 1]
                 dq[a, i, 2] += dt * dv[a, i, 2]
-        _forces(scheme, q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+        _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
             v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
         if m > 0:
-            _force_tangent(q, dq, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, dth_base, dF)
+            _force_tangent(q, dq, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base,
+                           dth_base, dF)
             for a in range(m):
                 for i in range(n):
                     dv[a, i, 0] += h * dF[a, i, 0] / m_t[i] * free[i, 0]
@@ -395,6 +402,10 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     without them). Raises SimulationDiverged."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
+    law = np.asarray(rod_args[5])
+    if scheme != "variational" and (law[0] != 0.0 or law[2] != 0.0 or np.any(rod_args[4])):
+        raise ValueError(f"rod.material: the {scheme!r} scheme implements linear laws and a uniform "
+                         "rest curvature only; use simulation.scheme: variational for this material")
     kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")

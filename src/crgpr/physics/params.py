@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from crgpr.physics.material import Material
+
 
 @dataclass(frozen=True)
 class RodParams:
@@ -40,6 +42,8 @@ class RodParams:
     base_spring: float = math.inf  # rotational base spring k [N m/rad]; inf = clamp
     internal_damping: float = 0.0  # Kelvin-Voigt bending damping m += c dkappa/dt, c [N m^2 s]
     stiffness_scale: float = 0.0  # a in E = E_nominal (1 + a): EA, GA, EI scale together [-]
+    # --- material laws (config rod.material; material.py; the default is the linear rod) ---
+    material: Material = Material()
 
     # ---- derived quantities -------------------------------------------------
     @property
@@ -103,6 +107,7 @@ class RodParams:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
+        d["material"] = self.material.to_dict()
         if math.isinf(d["base_spring"]):
             d["base_spring"] = None
         return d
@@ -118,6 +123,8 @@ class RodParams:
             d["base_spring"] = math.inf
         if "N" in d:
             d["N"] = int(d["N"])
+        if "material" in d:
+            d["material"] = _material_from_config(d["material"], d)
         return cls(**d)
 
     def max_frequency(self) -> float:
@@ -126,13 +133,17 @@ class RodParams:
         Translational rows: 4 max(EA, GA) / (rhoA ds^2); rotational rows:
         4 E / (rho ds^2) + GA / (rho I) (bending plus the shear couple of the
         mid-segment angle); a base spring k adds 2 k / (rho I ds) to the base node's
-        rotational row (half a segment of inertia). The Kelvin-Voigt damping is integrated
-        by its exact flow (``integrator.kelvin_voigt_propagator``) and sets no bound. Used to
+        rotational row (half a segment of inertia). A material's EI(s) profile raises the
+        bending term by its largest factor; the bound is that of the laws' tangent at zero
+        strain (the stiffening laws stiffen further under load). The Kelvin-Voigt damping is
+        integrated by its exact flow (``integrator.kelvin_voigt_propagator``) and sets no bound. Used to
         reject a time step that cannot be stable.
         """
         ds = self.ds
         w2_t = 4.0 * max(self.EA, self.GA) / (self.rhoA * ds**2)
         w2_r = 4.0 * self.E_eff / (self.rho * ds**2) + self.GA / self.rhoI
+        if not self.material.is_linear:  # the stiffest point of EI(s); at zero strain
+            w2_r += 4.0 * self.E_eff * (self.material.max_ei_factor() - 1.0) / (self.rho * ds**2)
         if not self.clamped:
             w2_r += 2.0 * self.base_spring / (self.rhoI * ds)
         return math.sqrt(max(w2_t, w2_r))
@@ -175,4 +186,20 @@ class SimSettings:
         return dataclasses.asdict(self)
 
 
-PARAM_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(RodParams))
+def _material_from_config(value: Any, d: dict[str, Any]) -> Material:
+    """``rod.material`` as a Material; its ``kelvin_voigt`` key sets ``internal_damping`` in ``d``."""
+    if isinstance(value, Material):
+        return value
+    if not isinstance(value, dict):
+        raise TypeError(f"rod.material: expected a mapping, got {type(value).__name__}")
+    value = dict(value)
+    c = value.pop("kelvin_voigt", 0.0)
+    if c:  # 0 leaves the internal_damping effect (missing-physics workflow, --set) as given
+        if d.get("internal_damping", 0.0) not in (0.0, c):
+            raise ValueError("rod.material.kelvin_voigt: conflicts with the internal_damping effect")
+        d["internal_damping"] = c
+    return Material.from_dict(value)
+
+
+# RodParams fields given as numbers (``crgpr simulate --set KEY=VALUE``): the material is a section
+PARAM_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(RodParams) if f.name != "material")

@@ -11,6 +11,7 @@ Strains and stress resultants live on the segments j = 0..N-1 (between nodes j, 
     nu1_j = cos(theta_bar) x' + sin(theta_bar) y',   nu2_j = -sin(theta_bar) x' + cos(theta_bar) y'
     kappa_j = (theta_{j+1} - theta_j) / ds
     n_1 = EA (nu1 - nu1^0), n_2 = GA (nu2 - nu2^0), m = EI (kappa - kappa^0)
+    (the linear material; material.py: the nonlinear laws of n_1 and m, EI(s), kappa^0(s))
     q_x = n_1 cos(theta_bar) - n_2 sin(theta_bar),  q_y = n_1 sin(theta_bar) + n_2 cos(theta_bar)
 The mid-segment angle is one-point (reduced) quadrature of the shear energy, which avoids
 shear locking.
@@ -48,6 +49,7 @@ import numpy as np
 from numba import njit
 
 from crgpr.physics.collocated import _collocated_forces, _nodal_forces
+from crgpr.physics.material import axial_force, bend_law, bending_moment, stretch_law
 from crgpr.physics.params import SCHEMES, RodParams
 
 STATE_NAMES: tuple[str, ...] = ("x", "y", "theta", "p_x", "p_y", "p_theta")
@@ -61,9 +63,27 @@ def node_weights(n_segments: int) -> np.ndarray:
 
 
 def segment_EI(params: RodParams) -> np.ndarray:
-    """Bending stiffness per segment, EI(s) = EI (1 - g s / L0) at segment midpoints [N m^2]."""
+    """Bending stiffness per segment, EI(s) = EI (1 - g s / L0) f(s) D(s) at segment midpoints
+    [N m^2] (f, D: the material's profile and defect, material.py)."""
     s_mid = (np.arange(params.N) + 0.5) * params.ds
-    return params.EI * (1.0 - params.stiffness_gradient * s_mid / params.L0)
+    EI = params.EI * (1.0 - params.stiffness_gradient * s_mid / params.L0)
+    if params.material.stiffness_profile or params.material.defect_factor != 1.0:
+        EI = EI * params.material.ei_factor(s_mid / params.L0)
+    return EI
+
+
+def segment_rest_curvature(params: RodParams) -> np.ndarray:
+    """The rest-curvature profile k(s) at segment midpoints [1/m]; kappa^0(s) = kappa0 + k(s)."""
+    s_mid = (np.arange(params.N) + 0.5) * params.ds
+    return params.material.rest_curvature(s_mid / params.L0)
+
+
+def check_scheme(params: RodParams, scheme: str) -> None:
+    """Refuse a material the spatial scheme does not implement (collocated: linear laws,
+    uniform rest curvature; EI(s) profiles and the defect are fine)."""
+    if scheme != "variational" and params.material.needs_variational:
+        raise ValueError(f"rod.material: the {scheme!r} scheme implements linear laws and a uniform "
+                         "rest curvature only; use simulation.scheme: variational for this material")
 
 
 def masses(params: RodParams) -> tuple[np.ndarray, np.ndarray]:
@@ -76,8 +96,11 @@ def masses(params: RodParams) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
-    """Generalised internal forces F = -dV/dq (nodal, not per length); returns elastic V."""
+def _internal_forces(q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F):
+    """Generalised internal forces F = -dV/dq (nodal, not per length); returns elastic V.
+
+    ``kap_seg`` (N,): the rest-curvature profile k(s) added to ``kappa0``; ``law``: the material
+    laws (``material.Material.law_vector``, energies in ``material.bend_law``/``stretch_law``)."""
     n = q.shape[0] - 1
     for i in range(n + 1):
         F[i, 0] = 0.0
@@ -92,10 +115,10 @@ def _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, 
         s = math.sin(tb)
         nu1 = c * ex + s * ey
         nu2 = -s * ex + c * ey
-        dk = (q[j + 1, 2] - q[j, 2]) / ds - kappa0
-        n1 = EA * (nu1 - nu1_0)
+        dk = (q[j + 1, 2] - q[j, 2]) / ds - (kappa0 + kap_seg[j])
+        n1, w_s, _ = stretch_law(law, EA, nu1 - nu1_0)
         n2 = GA * (nu2 - nu2_0)
-        mb = EI_seg[j] * dk * (1.0 + b_nl * dk * dk)
+        mb, w_b, _ = bend_law(law, EI_seg[j], dk, b_nl)
         qx = n1 * c - n2 * s
         qy = n1 * s + n2 * c
         F[j, 0] += qx
@@ -105,11 +128,7 @@ def _internal_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base, 
         tq = 0.5 * ds * (n1 * nu2 - n2 * nu1)
         F[j, 2] -= tq - mb
         F[j + 1, 2] -= tq + mb
-        V += ds * (
-            0.5 * EA * (nu1 - nu1_0) ** 2
-            + 0.5 * GA * (nu2 - nu2_0) ** 2
-            + EI_seg[j] * (0.5 * dk * dk + 0.25 * b_nl * dk**4)
-        )
+        V += ds * (w_s + 0.5 * GA * (nu2 - nu2_0) ** 2 + w_b)
     if k_base < np.inf:
         F[0, 2] -= k_base * (q[0, 2] - th_base)
         V += 0.5 * k_base * (q[0, 2] - th_base) ** 2
@@ -135,14 +154,17 @@ def internal_forces(q: np.ndarray, params: RodParams, theta_base: float = 0.0,
     """
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
-    kernel = {"variational": _internal_forces, "collocated": _collocated_forces,
-              "collocated_nodal": _nodal_forces}[scheme]
+    check_scheme(params, scheme)
     F = np.empty_like(q, dtype=float)
-    V = kernel(
-        np.ascontiguousarray(q, dtype=float), params.ds, params.EA, params.GA, segment_EI(params),
-        params.kappa0, params.nu1_0, params.nu2_0, params.nonlinear_stiffness,
-        params.base_spring, theta_base, F,
-    )
+    q = np.ascontiguousarray(q, dtype=float)
+    tail = (params.kappa0, params.nu1_0, params.nu2_0, params.nonlinear_stiffness, params.base_spring,
+            theta_base, F)
+    if scheme == "variational":
+        V = _internal_forces(q, params.ds, params.EA, params.GA, segment_EI(params),
+                             segment_rest_curvature(params), params.material.law_vector(), *tail)
+    else:
+        kernel = _collocated_forces if scheme == "collocated" else _nodal_forces
+        V = kernel(q, params.ds, params.EA, params.GA, segment_EI(params), *tail)
     return F, V
 
 
@@ -156,10 +178,11 @@ def strains(q: np.ndarray, params: RodParams) -> dict[str, np.ndarray]:
     nu1 = c * ex + s * ey
     nu2 = -s * ex + c * ey
     kappa = np.diff(th, axis=-1) / params.ds
-    n1 = params.EA * (nu1 - params.nu1_0)
+    law = params.material.law_vector()
+    n1 = axial_force(law, params.EA, nu1 - params.nu1_0)
     n2 = params.GA * (nu2 - params.nu2_0)
-    dk = kappa - params.kappa0
-    m = segment_EI(params) * dk * (1.0 + params.nonlinear_stiffness * dk**2)
+    dk = kappa - (params.kappa0 + segment_rest_curvature(params))
+    m = bending_moment(law, segment_EI(params), dk, params.nonlinear_stiffness)
     return {
         "nu1": nu1, "nu2": nu2, "kappa": kappa, "n1": n1, "n2": n2, "m": m,
         "q_x": n1 * c - n2 * s, "q_y": n1 * s + n2 * c, "theta_bar": tb,

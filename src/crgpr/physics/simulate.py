@@ -17,11 +17,13 @@ from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_r
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import (
     STATE_NAMES,
+    check_scheme,
     free_mask,
     internal_forces,
     masses,
     node_weights,
     segment_EI,
+    segment_rest_curvature,
     straight_rod,
 )
 
@@ -62,9 +64,11 @@ def dissipation_coefficients(params: RodParams) -> tuple[np.ndarray, np.ndarray,
 
 
 def rod_kernel_args(params: RodParams, theta_base: float) -> tuple:
-    """Trailing arguments of the compiled force kernel for these parameters."""
-    return (params.ds, params.EA, params.GA, segment_EI(params), params.kappa0, params.nu1_0,
-            params.nu2_0, params.nonlinear_stiffness, params.base_spring, theta_base)
+    """Trailing arguments of the compiled force kernel for these parameters (the material as
+    its EI(s), rest-curvature profile and law vector, ``rod._internal_forces``)."""
+    return (params.ds, params.EA, params.GA, segment_EI(params), segment_rest_curvature(params),
+            params.material.law_vector(), params.kappa0, params.nu1_0, params.nu2_0,
+            params.nonlinear_stiffness, params.base_spring, theta_base)
 
 
 def simulate(
@@ -86,6 +90,7 @@ def simulate(
     collocated.py); masses, damping, gravity and the integrator are the same for both.
     Raises ``SimulationDiverged`` if the run blows up.
     """
+    check_scheme(params, settings.scheme)
     th0 = math.radians(theta0_deg)
     q_init = straight_rod(th0, params) if q0 is None else np.array(q0, dtype=float)
     v_init = np.zeros_like(q_init) if v0 is None else np.array(v0, dtype=float)
