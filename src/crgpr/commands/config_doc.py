@@ -14,10 +14,24 @@ from crgpr.report.config_doc import config_markdown
 
 
 def schema_sections(main: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Each section schema the main schema references (``sections/<name>.schema.yaml``)."""
+    """Each section schema the main schema references, at any depth (``sections/<name>.schema.yaml``)."""
     base = schema_path().parent
-    refs = [sub["$ref"] for sub in main["properties"].values() if "$ref" in sub]
-    return {ref: yaml.safe_load((base / ref).read_text(encoding="utf-8")) for ref in refs}
+    sections: dict[str, dict[str, Any]] = {}
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            ref = node.get("$ref")
+            if isinstance(ref, str) and not ref.startswith("#") and ref not in sections:
+                sections[ref] = yaml.safe_load((base / ref).read_text(encoding="utf-8"))
+                walk(sections[ref])
+            for value in node.values():
+                walk(value)
+        elif isinstance(node, list):
+            for value in node:
+                walk(value)
+
+    walk(main)
+    return sections
 
 
 def config_page(config_path: str) -> str:
