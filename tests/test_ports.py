@@ -82,7 +82,8 @@ def test_port_work_is_the_integral_of_output_times_input():
 
 @settings(max_examples=30, deadline=None)
 @given(theta=st.floats(-10, 10), d=st.floats(-0.02, 0.02),
-       u=st.lists(st.floats(-5, 5), min_size=4, max_size=4), v=st.lists(st.floats(-3, 3), min_size=3, max_size=3))
+       u=st.lists(st.floats(-5, 5), min_size=4, max_size=4),
+       v=st.lists(st.floats(-3, 3), min_size=3, max_size=3))
 def test_output_is_g_transpose_velocity_and_power_is_force_dot_velocity(theta, d, u, v):
     """y^T u = (G u) . v_tip: the collocated output is dual to the nodal forces."""
     ports = Ports(d)

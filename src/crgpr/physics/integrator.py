@@ -527,7 +527,8 @@ def run_verlet(
     diss = np.zeros(q.shape[:-2])
     work = np.zeros(q.shape[:-2])
     out_w = np.zeros((n_rec, *q.shape[:-2])) if port is not None else None
-    pw = (np.ones(q.shape[-2]) if port_weight is None else np.asarray(port_weight, dtype=float))[:, None] * free
+    pw = np.ones(q.shape[-2]) if port_weight is None else np.asarray(port_weight, dtype=float)
+    pw = pw[:, None] * free
 
     def kick(q: np.ndarray, p: np.ndarray, fu: np.ndarray, vel0: np.ndarray | None
              ) -> tuple[np.ndarray, np.ndarray]:

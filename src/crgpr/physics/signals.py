@@ -114,7 +114,8 @@ def read_inputs(path: str | Path, t_end: float | None = None, t_start: float = 0
         raise InputsError(f"{path}: no column 't' (time [s])")
     unknown = [str(c) for c in df.columns if c != "t" and c not in CHANNELS]
     if unknown:
-        raise InputsError(f"{path}: unknown column {unknown[0]!r}; expected t and channels of {list(CHANNELS)}")
+        raise InputsError(f"{path}: unknown column {unknown[0]!r}; expected t and channels of "
+                          f"{list(CHANNELS)}")
     present = tuple(c for c in CHANNELS if c in df.columns)
     cols = {}
     for c in ("t", *present):
@@ -129,7 +130,8 @@ def read_inputs(path: str | Path, t_end: float | None = None, t_start: float = 0
     if t.size < 2:
         raise InputsError(f"{path}: column 't' needs at least 2 rows, has {t.size}")
     if np.any(np.diff(t) <= 0):
-        raise InputsError(f"{path}: column 't' is not strictly increasing (row {int(np.argmax(np.diff(t) <= 0)) + 1})")
+        row = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise InputsError(f"{path}: column 't' is not strictly increasing (row {row})")
     if t_end is not None and (t[0] > t_start + 1e-12 or t[-1] < t_end - 1e-12):
         raise InputsError(f"{path}: column 't' spans [{t[0]:g}, {t[-1]:g}] s, which does not cover "
                           f"[{t_start:g}, {t_end:g}] s")

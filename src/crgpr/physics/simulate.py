@@ -16,7 +16,6 @@ from crgpr.io import frame_to_grid
 from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
-from crgpr.physics.signals import Inputs
 from crgpr.physics.rod import (
     STATE_NAMES,
     free_mask,
@@ -26,6 +25,7 @@ from crgpr.physics.rod import (
     segment_EI,
     straight_rod,
 )
+from crgpr.physics.signals import Inputs
 
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("theta0_deg", "t", "node", "s", *STATE_NAMES)
 ENERGY_COLUMNS: tuple[str, ...] = ("t", "H", "dissipation_rate", "dissipated")
