@@ -33,7 +33,11 @@ class InputsError(ValueError):
 
 
 class Inputs(Protocol):
-    """An input sequence: ``values(t)`` -> (n_t, n_channels) in ``CHANNELS`` order."""
+    """An input sequence: ``values(t)`` -> (n_t, n_channels) in ``CHANNELS`` order; ``present``
+    names the channels it drives (the others are zero)."""
+
+    @property
+    def present(self) -> tuple[str, ...]: ...
 
     def values(self, t: np.ndarray) -> np.ndarray: ...
 
@@ -71,6 +75,10 @@ class SignalInputs:
         bad = [c for c in self.signals if c not in CHANNELS]
         if bad:
             raise InputsError(f"signal {self.name!r}: unknown channel(s) {bad}; expected {list(CHANNELS)}")
+
+    @property
+    def present(self) -> tuple[str, ...]:
+        return tuple(c for c in CHANNELS if c in self.signals)
 
     def values(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
@@ -143,6 +151,7 @@ def read_inputs(path: str | Path, t_end: float | None = None, t_start: float = 0
 
 
 def inputs_frame(inputs: Inputs, t: np.ndarray) -> pd.DataFrame:
-    """The input file (``t`` and every channel) of a sequence sampled at times t."""
+    """The input file (``t`` and the channels the sequence drives) of a sequence sampled at times t."""
     u = inputs.values(t)
-    return pd.DataFrame({"t": np.asarray(t, dtype=float), **{c: u[:, k] for k, c in enumerate(CHANNELS)}})
+    return pd.DataFrame({"t": np.asarray(t, dtype=float),
+                         **{c: u[:, k] for k, c in enumerate(CHANNELS) if c in inputs.present}})
