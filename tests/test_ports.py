@@ -12,7 +12,7 @@ from paper_rod import paper_rod
 
 from crgpr.physics.params import SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
-from crgpr.physics.signals import InputsError, SignalInputs, read_inputs
+from crgpr.physics.signals import InputsError, SignalInputs, TabulatedInputs, read_inputs
 from crgpr.physics.simulate import energy, simulate, velocities
 
 GRID = SimSettings(dt=1.0e-4, t_end=0.5, record_every=5, scheme="variational")
@@ -40,7 +40,8 @@ def test_zero_inputs_reproduce_the_unactuated_rod_bit_for_bit():
     rod = paper_rod(N=10)
     ref = simulate(85.0, rod, GRID)
     zero = SignalInputs({c: {"kind": "constant", "value": 0.0} for c in CHANNELS})
-    for inputs in (zero,):
+    table = TabulatedInputs(np.array([0.0, 1.0]), np.zeros((2, len(CHANNELS))))
+    for inputs in (zero, table):
         tr = simulate(85.0, rod, GRID, inputs=inputs, ports=PORTS)
         assert np.array_equal(tr.q, ref.q) and np.array_equal(tr.p, ref.p)
         assert np.array_equal(tr.dissipated, ref.dissipated)

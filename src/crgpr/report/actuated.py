@@ -51,5 +51,5 @@ def actuated_figure(curves: dict[str, dict[str, Any]], out: str | Path) -> None:
     axes[-1, 0].set_xlabel("t [s]")
     fig.tight_layout()
     with atomic_path(out, ".png") as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
