@@ -7,7 +7,8 @@ PORTS_STUDY = config["ports"]["study"]
 PORTS_TRAIN = PORTS_STUDY["train_signal"]
 PORTS_SIGNALS = [PORTS_TRAIN] + [s for s in PORTS_STUDY["test_signals"] if s != PORTS_TRAIN]
 PORTS_MODELS = ["objective", "camera"]
-_PORTS_REC = ("rod", "simulation", "ports.tendon_offset_m", "ports.study.theta0_deg", "ports.study.t_end_s")
+_PORTS_GRID = ("simulation.dt_s", "simulation.record_every", "simulation.scheme")  # t_end: ports.study
+_PORTS_REC = ("rod", *_PORTS_GRID, "ports.tendon_offset_m", "ports.study.theta0_deg", "ports.study.t_end_s")
 
 
 rule actuated_data:
@@ -97,7 +98,7 @@ rule actuated_accuracy:
         table=f"{RESULTS}/tables/actuated_accuracy.csv",
         figure=f"{RESULTS}/figures/actuated_tip.png",
     params:
-        cfg=cfg_params("rod", "simulation", "ports.tendon_offset_m", "ports.study"),
+        cfg=cfg_params("rod", *_PORTS_GRID, "ports.tendon_offset_m", "ports.study"),
         signals=PORTS_SIGNALS,
         models=PORTS_MODELS,
     log:

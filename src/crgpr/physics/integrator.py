@@ -27,6 +27,12 @@ private kernel of the same scheme and divergence policy for the analytic rod (gr
 tests/test_integrator.py checks that it and ``run_hamiltonian``/``run_generic`` agree to
 round-off.
 
+Actuation inputs (``physics.ports``): the tip load G(z) u at the step time is added in every kick
+(``run_rod``: after the elastic kick of the tip; ``run_verlet``: to F). Their work is booked
+per kick as the port impulse dotted with the mean of the velocities before and after the whole
+kick, which is that kick's exact share of the kinetic-energy change, so
+H(T) - H(0) = input work - dissipated holds to the scheme's O(dt^2) energy error.
+
 Divergence policy (one for every path): at each recorded step a node is diverged when its
 state is non-finite, a velocity component |dq/dt| reaches ``MAX_SPEED``, or its position
 leaves the disc of radius ``REACH`` x the rod length around the clamped base (node 0). The
