@@ -131,3 +131,25 @@ def test_bad_input_file_is_one_line_naming_file_and_column(tmp_path, df, words):
         read_inputs(p, t_end=1.0)
     msg = str(exc.value)
     assert words in msg and str(p) in msg and "\n" not in msg
+
+
+def test_cli_simulate_with_a_named_signal_records_the_port_work(tmp_path):
+    """crgpr simulate --signal NAME: the energy file has the port work and every channel's u and y,
+    and its balance closes (H(T) - H(0) = W - D to the scheme's error)."""
+    from conftest import SMOKE
+
+    from crgpr.cli import main
+    from crgpr.io import read_metadata, read_parquet
+
+    out, en = tmp_path / "r.parquet", tmp_path / "e.parquet"
+    assert main(["simulate", "--theta0", "85", "--t-end", "0.2", "--signal", "tendon_step", "--out", str(out),
+                 "--energy-out", str(en), "--config", str(SMOKE)]) == 0
+    e = read_parquet(en)
+    assert {"input_work", "u_tendon_tension", "y_tendon_tension", "u_tip_moment"} <= set(e.columns)
+    assert e["u_tendon_tension"].iloc[-1] > 0 and e["input_work"].abs().max() > 0
+    res = e["H"] - e["H"].iloc[0] - e["input_work"] + e["dissipated"]
+    assert res.abs().max() < 1e-4 * (e["kinetic"].max() + e["input_work"].abs().max())
+    assert read_metadata(out)["inputs"]["name"] == "tendon_step"
+    assert main(["simulate", "--theta0", "85", "--signal", "nope", "--out", str(tmp_path / "x.parquet"),
+                 "--config", str(SMOKE)]) == 2
+    assert not (tmp_path / "x.parquet").exists()
