@@ -109,6 +109,8 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
         "crgpr_sensitivity.csv": ["variant", "method", "overlay", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
+        "actuated_accuracy.csv": ["method", "train_signal", "test_signal", "theta0_deg", "rmse_theta",
+                                  "tip_rmse_over_L", "energy_balance_residual"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
                                       "verdict"],
     }.items():

@@ -193,6 +193,12 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     if clash:
         raise ConfigError(f"{source}: rollouts.study_methods {clash} are used by rollouts.table1_method, "
                           "rollouts.ablation_methods or uq.methods (target `all`)")
+    if "ports" in cfg:
+        study, sigs = cfg["ports"]["study"], cfg["ports"]["signals"]
+        named = [study["train_signal"], *study["test_signals"]]
+        unknown = sorted({s for s in named if s not in sigs})
+        if unknown:
+            raise ConfigError(f"{source}: ports.study names {unknown}, not keys of ports.signals")
     if "uq" in cfg:
         from crgpr.uq.settings import UQSettings
 

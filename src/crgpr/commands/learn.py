@@ -55,6 +55,9 @@ from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_a
 from crgpr.learning.rest_curvature import rest_curvature_estimate
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import Ports, ports_from_config
+from crgpr.physics.rod import node_weights
+from crgpr.physics.signals import Inputs, read_inputs
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 MANIFEST = "manifest.json"
@@ -109,9 +112,22 @@ def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> tuple[np.nd
     return out[..., 3], out[..., :3]
 
 
+def port_inputs_per_length(arr: dict[str, np.ndarray], params: RodParams, inputs: Inputs, ports: Ports
+                           ) -> np.ndarray:
+    """G(z) u per unit length (n_t, N+1, 3) at the training frames ``arr`` (eq. (13)'s input term
+    of the actuation channels), u interpolated to the frames' times."""
+    q = np.stack([arr["x"], arr["y"], arr["theta"]], axis=-1)
+    wds = node_weights(params.N) * params.ds
+    return ports.nodal_forces(q, inputs.values(arr["t"])) / wds[:, None]
+
+
 def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], features: str = "objective",
-          prefilter_method: str = "gp") -> dict[str, Any]:
-    """Train the gradient models of ``features`` from a trajectory file into ``out_dir``."""
+          prefilter_method: str = "gp", inputs_file: str | Path | None = None) -> dict[str, Any]:
+    """Train the gradient models of ``features`` from a trajectory file into ``out_dir``.
+
+    ``inputs_file``: the actuation inputs that drove the record (``physics.signals.read_inputs``:
+    ``t`` and one column per channel, covering the record's time range); the targets subtract
+    their G(z) u as eq. (13) does (``ports`` of the config: the G used is in the manifest)."""
     t_start = time.perf_counter()
     names = model_names(features)
     if prefilter_method not in PREFILTERS:
@@ -123,6 +139,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     disc = cfg["discovery"]
     params = model_params(measured, cfg)
     meas = load_measured(measured, params.L0, params.ds, ScreenSettings.from_config(disc))
+    inputs = None if inputs_file is None else read_inputs(inputs_file, float(meas.t[-1]), float(meas.t[0]))
+    ports = None if inputs is None else ports_from_config(cfg)
     seed = int(cfg["seed"]) + 3000
     full = _full_state_momenta(measured, meas.t.size, meas.x.shape[1])
     if full is None:
@@ -138,6 +156,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                         "n_frames_used": int(arr["t"].size), "rate_hz": meas.rate_hz,
                         "n_nodes": int(meas.x.shape[1]), "prefilter_meta": pmeta}
         kind = "full_state"
+    if inputs is not None:
+        arr["G_u"] = port_inputs_per_length(arr, params, inputs, ports)
     # positions only: H_p = p / m holds exactly by construction, a noise floor keeps the 1D GPs
     # well conditioned (camera.learn.momentum_sigma_n_min, output units)
     cfg_m = copy.deepcopy(cfg)
@@ -208,6 +228,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": symmetry if features == "objective" else None,
                 "models": trained, **grey,
+                "inputs": None if inputs is None else inputs.describe(),
+                "ports": None if ports is None else ports.to_dict(),
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
@@ -296,18 +318,69 @@ def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None
     return st
 
 
-def rollout_models(cfg: dict[str, Any], model_dir: str | Path, theta0_deg: float, out: str | Path,
+def initial_state(path: str | Path, cfg: dict[str, Any], params: RodParams, prefilter_method: str = "gp"
+                  ) -> tuple[np.ndarray, np.ndarray, float, dict[str, Any]]:
+    """A rollout's initial state (q0, p0 per length, t0) from the first frame of a measured file
+    (the format of ``--measured``, on the model's node grid), and how it was obtained.
+
+    A full-state file gives x, y, theta and the momenta of its first frame as they are. From
+    positions only, the state is derived as ``crgpr learn`` derives its training state
+    (``learning.camera.positions_to_state``: the ``prefilter_method`` position GPs over the whole
+    record, whose time derivatives give the velocities, hence p = rho A v, rho I omega), taken at
+    the first frame it keeps (``camera.learn.edge_trim_s`` after the record's start, where the
+    GP derivatives are no longer end-affected)."""
+    meas = load_measured(path, params.L0, params.ds, ScreenSettings.from_config(cfg["discovery"]))
+    full = _full_state_momenta(path, meas.t.size, meas.x.shape[1])
+    if full is not None:
+        check_node_grid(meas, params)
+        theta, p = full
+        q0 = np.stack([meas.x[0], meas.y[0], theta[0]], axis=-1)
+        return q0, p[0].copy(), float(meas.t[0]), {"initial": "first frame of a full-state file",
+                                                  "t0_s": float(meas.t[0])}
+    st = LearnSettings.from_config(cfg["camera"]["learn"])
+    arr, _ = positions_to_state(meas, params, prefilter_method, st, int(cfg["seed"]) + 3000)
+    q0 = np.stack([arr["x"][0], arr["y"][0], arr["theta"][0]], axis=-1)
+    p0 = np.stack([arr[c][0] for c in MOMENTUM_COLUMNS], axis=-1)
+    return q0, p0, float(arr["t"][0]), {"initial": f"positions, {prefilter_method} prefilter state at its "
+                                        "first kept frame", "t0_s": float(arr["t"][0])}
+
+
+def rollout_models(cfg: dict[str, Any], model_dir: str | Path, theta0_deg: float | None, out: str | Path,
                    energy_out: str | Path | None = None, t_end: float | None = None,
-                   label: str | None = None) -> Trajectory:
-    """Roll a ``crgpr learn`` model directory out from the straight rod at rest (stage 3)."""
+                   label: str | None = None, inputs_file: str | Path | None = None,
+                   initial: str | Path | None = None) -> Trajectory:
+    """Roll a ``crgpr learn`` model directory out from the straight rod at rest at ``theta0_deg``
+    or from the first frame of the measured file ``initial`` (``initial_state``), driven by the
+    actuation inputs of ``inputs_file`` (with the G of the model's manifest, else of the config's
+    ``ports``) besides the model's gravity. Every input is checked before anything is written."""
     model, man = load_learned(model_dir)
     st = rollout_settings(cfg, model.params, t_end)
+    if (theta0_deg is None) == (initial is None):
+        raise ConfigError("give exactly one of --theta0 and --initial")
+    init = None
+    if initial is not None:
+        q0, p0, t_init, how = initial_state(initial, cfg, model.params, man["prefilter"])
+        if q0.shape != (model.params.N + 1, 3):
+            raise MeasuredDataError(f"{initial}: {q0.shape[0]} nodes, the model has N + 1 = "
+                                    f"{model.params.N + 1}")
+        init = (q0, p0, t_init)
+        theta0_deg = math.nan
+    inputs, ports = None, None
+    if inputs_file is not None:
+        t_init = 0.0 if init is None else init[2]
+        inputs = read_inputs(inputs_file, t_init + st.t_end, t_init)
+        ports = Ports(float(man["ports"]["tendon_offset_m"])) if man.get("ports") else ports_from_config(cfg)
     label = label or f"{man['features']}/{man['prefilter']} model {model_dir}"
+    where = f"theta0 = {theta0_deg:g} deg" if init is None else f"the first frame of {initial}"
     t0 = time.perf_counter()
-    traj = rollout(model, theta0_deg, st, what=f"{label} at theta0 = {theta0_deg:g} deg")
+    traj = rollout(model, theta0_deg, st, what=f"{label} from {where}", inputs=inputs, ports=ports,
+                   initial=init)
     meta = {"kind": "rollout", "method": label, "theta0_deg": theta0_deg, "features": man["features"],
             "prefilter": man["prefilter"], "model_dir": str(model_dir), "trained_on": man["source"],
-            "seconds": time.perf_counter() - t0, "rod": model.params.to_dict(), "simulation": st.to_dict()}
+            "seconds": time.perf_counter() - t0, "rod": model.params.to_dict(), "simulation": st.to_dict(),
+            "initial": None if init is None else {"file": str(initial), **how},
+            "inputs": None if inputs is None else inputs.describe(),
+            "ports": None if ports is None else ports.to_dict()}
     write_parquet(trajectory_frame(traj), out, meta)
     if energy_out is not None:
         write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
@@ -332,6 +405,9 @@ def add_cli(sub: Any) -> None:
     p.add_argument("--out", required=True, help="model directory to write (npz/json + manifest.json)")
     p.add_argument("--features", choices=FEATURES, default="objective")
     p.add_argument("--prefilter", choices=PREFILTERS, default="gp")
+    p.add_argument("--inputs", help="actuation inputs that drove the record: Parquet or CSV with t [s] "
+                   "and one column per channel (tip_force_x, tip_force_y, tip_moment, tendon_tension); "
+                   "docs/ports.md")
     p.add_argument("--config", default="config.yaml",
                    help="config.yaml (nominal rod, camera, gradient_models)")
     p.set_defaults(func=_cli)
@@ -340,7 +416,7 @@ def add_cli(sub: Any) -> None:
 def _cli(args: Any) -> None:
     from crgpr.config import load_config
 
-    man = learn(args.measured, args.out, load_config(args.config), args.features, args.prefilter)
+    man = learn(args.measured, args.out, load_config(args.config), args.features, args.prefilter, args.inputs)
     noise = man["state"].get("noise_std_m_estimated")
     print(f"learned {man['features']} models ({man['prefilter']} prefilter, {man['input']} input, "
           f"N = {man['rod']['N']}" + (f", noise {noise * 1e3:.3g} mm" if noise else "") +

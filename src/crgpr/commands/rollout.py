@@ -34,7 +34,12 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
                                    "straight rod at rest.")
     p.add_argument("--method", help="a key of rollouts.methods (cr_gpr, ...); without it, the "
                    "features and rod are read from MODELS/manifest.json (a crgpr learn directory)")
-    p.add_argument("--theta0", type=float, required=True, help="initial angle [deg]")
+    start = p.add_mutually_exclusive_group(required=True)
+    start.add_argument("--theta0", type=float, help="initial angle [deg] (straight rod at rest)")
+    start.add_argument("--initial", help="start from the first frame of this measured file (the format "
+                       "of crgpr learn --measured; manifest models)")
+    p.add_argument("--inputs", help="actuation inputs: Parquet or CSV with t [s] and one column per channel "
+                   "(manifest models; docs/ports.md)")
     p.add_argument("--models", required=True, help="directory of the model files")
     p.add_argument("--out", required=True)
     p.add_argument("--energy-out")
@@ -49,7 +54,10 @@ def _cli_rollout(a: argparse.Namespace) -> None:
     if a.method is None:
         from crgpr.commands.learn import rollout_models
 
-        rollout_models(cfg, a.models, a.theta0, a.out, a.energy_out, a.t_end)
+        rollout_models(cfg, a.models, a.theta0, a.out, a.energy_out, a.t_end, inputs_file=a.inputs,
+                       initial=a.initial)
+    elif a.initial is not None or a.inputs is not None:
+        raise ConfigError("--initial and --inputs apply to manifest models (without --method)")
     elif a.t_end is not None:
         raise ConfigError("--t-end applies to manifest models (without --method); configured methods "
                           "use simulation.t_end_s")

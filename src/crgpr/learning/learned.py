@@ -22,7 +22,8 @@ Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p
 dissipated power, paper Fig. 5), and the learned stored energy by the path integral
 H_hat(t) = int H_z_hat . dz (trapezoid over the recorded samples) plus the gravity
 potential; the balance residual H_hat(t) + U_g(t) - H_hat(0) - U_g(0) + int_0^t E measures how
-far the learned force field is from a gradient field plus the time discretisation.
+far the learned force field is from a gradient field plus the time discretisation (an actuated
+rollout subtracts the port work int y^T u dt, ``input_work``, as well).
 """
 
 from __future__ import annotations
@@ -45,7 +46,9 @@ from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import Ports
 from crgpr.physics.rod import free_mask, node_weights, straight_rod
+from crgpr.physics.signals import Inputs
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 log = logging.getLogger(__name__)
@@ -154,20 +157,40 @@ class LearnedRod:
 
 
 def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout",
-            n_batch: int | None = None) -> Trajectory:
+            n_batch: int | None = None, inputs: Inputs | None = None, ports: Ports | None = None,
+            initial: tuple[np.ndarray, np.ndarray, float] | None = None) -> Trajectory:
     """Integrate the learned dPHS from the straight rod at rest (same scheme and dt as ground truth).
 
     ``n_batch``: integrate that many copies at once (a model whose components carry a leading
     batch axis, e.g. posterior samples); q and p are then (n_t, n_batch, N+1, 3).
+    ``inputs`` drive the ``ports`` (G(z) u of ``physics.ports``, the simulator's G, added to the
+    model's gravity per unit length at every step time); their work is ``input_work``.
+    ``initial`` = (q0, p0, t0): start from that state (p per length) at time t0 [s] instead of
+    the straight rod at rest (the inputs are then read from t0 on, and t starts at t0).
     """
     P = model.params
-    q0 = straight_rod(math.radians(theta0_deg), P)
+    if initial is None:
+        q0, p0, t0 = straight_rod(math.radians(theta0_deg), P), None, 0.0
+    else:
+        q0, p0, t0 = np.array(initial[0], dtype=float), np.array(initial[1], dtype=float), float(initial[2])
     if n_batch is not None:
         q0 = np.repeat(q0[None], n_batch, axis=0)
-    out = run_hamiltonian(q0, np.zeros_like(q0), model.force, model.velocity, free_mask(P), P.zeta,
-                          settings.dt, settings.n_steps, settings.record_every, model.wds, what,
-                          velocity_slope=model.velocity_slope)
-    return Trajectory(float(theta0_deg), out.t, out.q, out.v, P, out.dissipated)
+        p0 = None if p0 is None else np.repeat(p0[None], n_batch, axis=0)
+    port = None
+    if inputs is not None:
+        if ports is None:
+            raise ValueError("inputs need the ports (channels' G) they drive")
+        u = inputs.values(t0 + np.arange(settings.n_steps + 1) * settings.dt)
+        inv_wds = 1.0 / model.wds[:, None]
+
+        def port(k: int, q: np.ndarray) -> np.ndarray:
+            return ports.nodal_forces(q, np.broadcast_to(u[k], (*q.shape[:-2], u.shape[1]))) * inv_wds
+    out = run_hamiltonian(q0, np.zeros_like(q0) if p0 is None else p0, model.force, model.velocity,
+                          free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
+                          model.wds, what, velocity_slope=model.velocity_slope, port=port)
+    return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
+                      input_work=out.input_work,
+                      u=None if inputs is None else u[::settings.record_every], ports=ports)
 
 
 def learned_energy(model: LearnedRod, traj: Trajectory) -> pd.DataFrame:
@@ -185,10 +208,14 @@ def learned_energy(model: LearnedRod, traj: Trajectory) -> pd.DataFrame:
     U_g = P.rhoA * P.g * (model.wds * traj.q[..., 1]).sum(axis=1)
     dissipated = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(traj.t))])
     total = H_path + U_g
-    return pd.DataFrame({"t": traj.t, "dissipation_rate": rate, "dissipated": dissipated,
-                         "H_learned": total, "stored_learned": H_path, "gravity": U_g,
-                         "balance_residual": total - total[0] + dissipated,
-                         "dissipated_integrator": traj.dissipated})
+    work = np.zeros_like(total) if traj.input_work is None else traj.input_work
+    df = pd.DataFrame({"t": traj.t, "dissipation_rate": rate, "dissipated": dissipated,
+                       "H_learned": total, "stored_learned": H_path, "gravity": U_g,
+                       "balance_residual": total - total[0] + dissipated - work,
+                       "dissipated_integrator": traj.dissipated})
+    if traj.input_work is not None:  # actuated: the port work of the integrator's kicks [J]
+        df["input_work"] = traj.input_work
+    return df
 
 
 def method_spec(cfg: dict[str, Any], method: str) -> dict[str, str]:

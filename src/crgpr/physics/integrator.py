@@ -27,6 +27,12 @@ private kernel of the same scheme and divergence policy for the analytic rod (gr
 tests/test_integrator.py checks that it and ``run_hamiltonian``/``run_generic`` agree to
 round-off.
 
+Actuation inputs (``physics.ports``): the tip load G(z) u at the step time is added in every kick
+(``run_rod``: after the elastic kick of the tip; ``run_verlet``: to F). Their work is booked
+per kick as the port impulse dotted with the mean of the velocities before and after the whole
+kick, which is that kick's exact share of the kinetic-energy change, so
+H(T) - H(0) = input work - dissipated holds to the scheme's O(dt^2) energy error.
+
 Divergence policy (one for every path): at each recorded step a node is diverged when its
 state is non-finite, a velocity component |dq/dt| reaches ``MAX_SPEED``, or its position
 leaves the disc of radius ``REACH`` x the rod length around the clamped base (node 0). The
@@ -47,6 +53,7 @@ from numba import njit
 from crgpr.physics.collocated import _collocated_forces, _nodal_forces
 from crgpr.physics.material import bend_law, stretch_law
 from crgpr.physics.params import SCHEMES
+from crgpr.physics.ports import _tip_load
 from crgpr.physics.rod import _internal_forces
 
 # A rod of length L released from rest cannot move its material points faster than about
@@ -82,6 +89,9 @@ class Integration:
     # tangent-linear records (n_rec, m, N+1, 3) of m initial-state directions (``run_rod``'s
     # dq0/dv0): dq/d(direction); None when no direction was given
     dq: np.ndarray | None = None
+    # cumulative work of the actuation inputs (``physics.ports``) [J]: at every kick the port
+    # impulse dotted with the mean of the pre- and post-kick velocities; None without inputs
+    input_work: np.ndarray | None = None
 
 
 @njit(cache=True)
@@ -271,15 +281,42 @@ def _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b
 
 
 @njit(cache=True)
+def _port_kick(v, i, P, m_t, m_r, free, h, v_pre):
+    """Kick node i by the port load P (F_x, F_y, M) over h, after its elastic and gravity kick
+    from the velocities ``v_pre``; returns the port work [J]: the port impulse h P dotted with
+    the mean of the velocities before and after the whole kick. The kick's kinetic-energy change
+    is exactly its total impulse dotted with that mean, so this is the ports' exact share (the
+    elastic share cancels the potential's change to the scheme's O(dt^2))."""
+    w = 0.0
+    for c in range(3):
+        m = m_t[i] if c < 2 else m_r[i]
+        v[i, c] += h * P[c] / m * free[i, c]
+        w += h * P[c] * free[i, c] * 0.5 * (v_pre[c] + v[i, c])
+    return w
+
+
+@njit(cache=True)
 def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI_seg, kap_seg, law,
                 kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, dt, n_steps, every, reach, out_q, out_v,
-                out_d, kv, scheme, dq, dv, out_dq):
+                out_d, kv, scheme, dq, dv, out_dq, u, d_tendon, out_w):
     """Compiled rollout of the analytic rod. Returns -1 on success, else the failing step.
 
     ``dq``, ``dv`` (m, N+1, 3): m directions of the initial state, propagated by the tangent-
     linear scheme alongside (variational scheme only; m = 0: none) and recorded in ``out_dq``;
-    the rollout itself does the same arithmetic with or without them."""
+    the rollout itself does the same arithmetic with or without them. ``u`` (n_steps + 1,
+    n_channels): the input values at the step times k dt (``physics.ports``; 0 rows: no inputs),
+    applied at the tip after each elastic kick with the tendon offset ``d_tendon``; their
+    cumulative work is recorded in ``out_w``."""
     n = q.shape[0]
+    use_u = u.shape[0] > 0
+    tip = n - 1
+    Gs = np.zeros((4, 3))
+    Pt = np.zeros(3)
+    vpre = np.zeros(3)
+    work = 0.0
+    if use_u:
+        _tip_load(q[tip, 2], u[0], d_tendon, Gs, Pt)
+        out_w[0] = 0.0
     m = dq.shape[0]
     F = np.zeros((n, 3))
     dF = np.zeros((m, n, 3))
@@ -307,10 +344,15 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
         diss += _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
         if use_kv:
             diss += _kv_damp(v, m_r, kv)
+        if use_u:
+            for c in range(3):
+                vpre[c] = v[tip, c]
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
             v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
+            if use_u and i == tip:
+                work += _port_kick(v, i, Pt, m_t, m_r, free, h, vpre)
             q[i, 0] += dt * v[i, 0]
             q[i, 1] += dt * v[i, 1]
             q[i, 2] += dt * v[i, 2]
@@ -323,10 +365,16 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
                 dq[a, i, 1] += dt * dv[a, i, 1]
                 dq[a, i, 2] += dt * dv[a, i, 2]
         _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base, th_base, F)
+        if use_u:
+            for c in range(3):
+                vpre[c] = v[tip, c]
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
             v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
+        if use_u:
+            _tip_load(q[tip, 2], u[k], d_tendon, Gs, Pt)
+            work += _port_kick(v, tip, Pt, m_t, m_r, free, h, vpre)
         if m > 0:
             _force_tangent(q, dq, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base,
                            dth_base, dF)
@@ -355,6 +403,8 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             out_q[r] = q
             out_v[r] = v
             out_d[r] = diss
+            if use_u:
+                out_w[r] = work
             if m > 0:
                 out_dq[r] = dq
     return -1
@@ -389,7 +439,8 @@ def _diverged(what: str, k: int, dt: float, bad: np.ndarray, hint: str,
 
 def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, dt, n_steps, every,
             length=None, kv: np.ndarray | None = None, scheme: str = "variational",
-            dq0: np.ndarray | None = None, dv0: np.ndarray | None = None):
+            dq0: np.ndarray | None = None, dv0: np.ndarray | None = None,
+            u: np.ndarray | None = None, tendon_offset: float = 0.0):
     """Integrate the analytic rod (compiled ``run_generic``). ``rod_args`` are the trailing
     arguments of the force kernel; ``grav_force`` the nodal y-force of gravity (-m_i g);
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
@@ -399,7 +450,10 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     directions of the initial state whose tangent-linear propagation (the exact derivative of
     this discrete scheme's records with respect to the initial state) is returned in
     ``Integration.dq`` (variational scheme; the rollout is the same to the last bit with or
-    without them). Raises SimulationDiverged."""
+    without them). ``u`` (n_steps + 1, n_channels): the actuation inputs at the step times
+    k dt (``physics.ports``, tendon offset ``tendon_offset`` [m]; None: none, the kernel's
+    arithmetic is then that of a rod without ports), their work in ``Integration.input_work``.
+    Raises SimulationDiverged."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown spatial scheme {scheme!r}; expected one of {SCHEMES}")
     law = np.asarray(rod_args[5])
@@ -424,16 +478,22 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     out_v = np.zeros_like(out_q)
     out_d = np.zeros(n_rec)
     out_dq = np.zeros((n_rec if dq.shape[0] else 0, *dq.shape))
+    uu = np.zeros((0, 4)) if u is None else np.ascontiguousarray(u, dtype=float)
+    if u is not None and uu.shape != (n_steps + 1, 4):
+        raise ValueError(f"inputs u must be (n_steps + 1, 4) = ({n_steps + 1}, 4), not {uu.shape}")
+    out_w = np.zeros(n_rec)
     status = _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, *rod_args,
                          dt, n_steps, every, reach, out_q, out_v, out_d, kv, SCHEMES.index(scheme),
-                         dq, dv, out_dq)
+                         dq, dv, out_dq, uu, float(tendon_offset), out_w)
     t = np.arange(n_rec) * dt * every
+    w = None if u is None else out_w
     if status >= 0:
         r = status // every
         raise _diverged("simulation", status, dt, diverged_nodes(q, v, base, reach),
                         " Reduce the time step (config key simulation.dt_s) or check the parameters.",
-                        Integration(t[:r], out_q[:r], out_v[:r], out_d[:r]))
-    return Integration(t, out_q, out_v, out_d, out_dq if dq.shape[0] else None)
+                        Integration(t[:r], out_q[:r], out_v[:r], out_d[:r],
+                                    input_work=None if w is None else w[:r]))
+    return Integration(t, out_q, out_v, out_d, out_dq if dq.shape[0] else None, w)
 
 
 def run_verlet(
@@ -449,6 +509,8 @@ def run_verlet(
     kick_scale: np.ndarray | None = None,
     length: float | None = None,
     what: str = "rollout",
+    port: Callable[[int, np.ndarray], np.ndarray] | None = None,
+    port_weight: np.ndarray | None = None,
 ) -> Integration:
     """The Strang-split Stormer-Verlet scheme of the module docstring, generic form.
 
@@ -461,6 +523,10 @@ def run_verlet(
     ``velocity`` do; every member is integrated independently, ``damp`` returns the energy
     removed per member and ``dissipated`` is (n_rec, ...). Raises SimulationDiverged
     (divergence policy of the module docstring; for a batch ``members`` names the bad ones).
+    ``port(k, q)``: the actuation inputs' addition to dp/dt at step time k dt (G(z) u,
+    ``physics.ports``), added to ``force``; their work, h (port force) . (mean of the pre- and
+    post-kick velocities) per kick weighted per node by ``port_weight`` (N+1,) (the node's
+    length w_i ds for forces per length; 1 for nodal forces), is ``Integration.input_work``.
     """
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
@@ -476,13 +542,36 @@ def run_verlet(
     h = 0.5 * dt
     f = force(q, p)
     diss = np.zeros(q.shape[:-2])
+    work = np.zeros(q.shape[:-2])
+    out_w = np.zeros((n_rec, *q.shape[:-2])) if port is not None else None
+    pw = np.ones(q.shape[-2]) if port_weight is None else np.asarray(port_weight, dtype=float)
+    pw = pw[:, None] * free
+
+    def kick(q: np.ndarray, p: np.ndarray, fu: np.ndarray, vel0: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """p after a port-carrying kick and the velocity there; adds the port work."""
+        v0 = velocity(q, p) if vel0 is None else vel0
+        p = p + h * (f + fu) * ks
+        v1 = velocity(q, p)
+        work[...] += h * (pw * fu * 0.5 * (v0 + v1)).sum(axis=(-2, -1))
+        return p, v1
+
+    fu = port(0, q) if port is not None else None
     for k in range(1, n_steps + 1):
         if damp is not None:
             p, e1 = damp(p)
-        p = p + h * f * ks
-        q = q + dt * velocity(q, p) * free
+        if fu is None:
+            p = p + h * f * ks
+            q = q + dt * velocity(q, p) * free
+        else:
+            p, v1 = kick(q, p, fu, None)
+            q = q + dt * v1 * free
         f = force(q, p)
-        p = p + h * f * ks
+        if fu is None:
+            p = p + h * f * ks
+        else:
+            fu = port(k, q)
+            p, _ = kick(q, p, fu, None)
         if damp is not None:
             p, e2 = damp(p)
             diss += e1 + e2
@@ -490,9 +579,13 @@ def run_verlet(
             r = k // every
             bad = diverged_nodes(q, velocity(q, p), base, reach)
             if bad.any():
-                raise _diverged(what, k, dt, bad, "", Integration(t[:r], out_q[:r], out_p[:r], out_d[:r]))
+                raise _diverged(what, k, dt, bad, "", Integration(
+                    t[:r], out_q[:r], out_p[:r], out_d[:r],
+                    input_work=None if out_w is None else out_w[:r]))
             out_q[r], out_p[r], out_d[r] = q, p, diss
-    return Integration(t, out_q, out_p, out_d)
+            if out_w is not None:
+                out_w[r] = work
+    return Integration(t, out_q, out_p, out_d, input_work=out_w)
 
 
 def run_generic(
@@ -511,10 +604,12 @@ def run_generic(
     what: str = "rollout",
     length: float | None = None,
     kv: np.ndarray | None = None,
+    port: Callable[[int, np.ndarray], np.ndarray] | None = None,
 ) -> Integration:
     """``run_verlet`` in positions and velocities with lumped masses m_t, m_r: dq/dt = v,
-    m dv/dt = force(q) (including gravity and any input), damping by the exact flow of
-    ``run_rod`` (rates lam_t, lam_r, quadratic drag k_quad). Same scheme as ``run_rod``."""
+    m dv/dt = force(q) (including gravity) + port(k, q) (the nodal actuation forces at step k,
+    ``run_verlet``), damping by the exact flow of ``run_rod`` (rates lam_t, lam_r, quadratic
+    drag k_quad). Same scheme as ``run_rod``."""
     n = q0.shape[0]
     k_quad = np.zeros(n) if k_quad is None else k_quad
     minv = np.stack([1.0 / m_t, 1.0 / m_t, 1.0 / m_r], axis=1) * free
@@ -531,7 +626,7 @@ def run_generic(
         return v, lost
 
     return run_verlet(q0, v0, lambda q, v: force(q), lambda q, v: v, free, dt, n_steps, every,
-                      damp=damp, kick_scale=minv, length=length, what=what)
+                      damp=damp, kick_scale=minv, length=length, what=what, port=port)
 
 
 def run_hamiltonian(
@@ -548,6 +643,7 @@ def run_hamiltonian(
     what: str = "rollout",
     velocity_slope: Callable[[np.ndarray], np.ndarray] | None = None,
     length: float | None = None,
+    port: Callable[[int, np.ndarray], np.ndarray] | None = None,
 ) -> Integration:
     """``run_verlet`` in (q, p) for a learned H_z (eq. (17), Sec. III-B step 4).
 
@@ -561,7 +657,8 @@ def run_hamiltonian(
     ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid over each damping
     half-step; needs ``wds``). States may carry leading batch axes (..., N+1, 3) when
     ``force`` and ``velocity`` do (several initial states, or a LearnedRod of posterior
-    samples); ``dissipated`` is then per member (n_rec, ...).
+    samples); ``dissipated`` is then per member (n_rec, ...). ``port(k, q)``: G(z) u per unit
+    length at step k (``physics.ports``); its work (weighted by ``wds``) is ``input_work``.
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -587,4 +684,4 @@ def run_hamiltonian(
         return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
-                      every, damp=damp, length=length, what=what)
+                      every, damp=damp, length=length, what=what, port=port, port_weight=wds)

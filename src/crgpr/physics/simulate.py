@@ -15,6 +15,7 @@ import pandas as pd
 from crgpr.io import frame_to_grid
 from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_rod
 from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import CHANNELS, Ports
 from crgpr.physics.rod import (
     STATE_NAMES,
     check_scheme,
@@ -26,6 +27,7 @@ from crgpr.physics.rod import (
     segment_rest_curvature,
     straight_rod,
 )
+from crgpr.physics.signals import Inputs
 
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("theta0_deg", "t", "node", "s", *STATE_NAMES)
 ENERGY_COLUMNS: tuple[str, ...] = ("t", "H", "dissipation_rate", "dissipated")
@@ -46,6 +48,9 @@ class Trajectory:
     dissipated: np.ndarray | None = None
     scheme: str = "variational"  # spatial scheme that produced it (its energy's V)
     dq: np.ndarray | None = None  # tangent records (n_t, m, N+1, 3) of ``simulate``'s dq0/dv0
+    input_work: np.ndarray | None = None  # cumulative work of the actuation inputs [J]
+    u: np.ndarray | None = None  # actuation inputs (n_t, n_channels) at the recorded times
+    ports: Ports | None = None  # the channels' G (tendon offset)
 
     @property
     def z(self) -> np.ndarray:
@@ -79,6 +84,8 @@ def simulate(
     v0: np.ndarray | None = None,
     dq0: np.ndarray | None = None,
     dv0: np.ndarray | None = None,
+    inputs: Inputs | None = None,
+    ports: Ports | None = None,
 ) -> Trajectory:
     """Simulate the rod released at rest, straight, at theta0 [deg] from +x (clamped base).
 
@@ -88,6 +95,8 @@ def simulate(
     ``Trajectory.dq`` (tangent-linear scheme, ``integrator.run_rod``; variational scheme).
     ``settings.scheme`` picks the spatial discretisation of the elastic forces (rod.py or
     collocated.py); masses, damping, gravity and the integrator are the same for both.
+    ``inputs`` (with ``ports``, the channels' G): the actuation u(t) at the tip
+    (``physics.ports``), sampled at every step time k dt; their work is ``input_work``.
     Raises ``SimulationDiverged`` if the run blows up.
     """
     check_scheme(params, settings.scheme)
@@ -97,19 +106,26 @@ def simulate(
     m_t, m_r = masses(params)
     lam_t, lam_r, k_quad = dissipation_coefficients(params)
     grav = -m_t * params.g
+    u = None
+    if inputs is not None:
+        if ports is None:
+            raise ValueError("inputs need the ports (channels' G) they drive")
+        u = inputs.values(np.arange(settings.n_steps + 1) * settings.dt)
     out: Integration = run_rod(
         q_init, v_init, free_mask(params), m_t, m_r, lam_t, lam_r, k_quad, grav,
         rod_kernel_args(params, float(q_init[0, 2])), settings.dt, settings.n_steps,
         settings.record_every,
         kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
                                    0.5 * settings.dt),
-        scheme=settings.scheme, dq0=dq0, dv0=dv0,
+        scheme=settings.scheme, dq0=dq0, dv0=dv0, u=u,
+        tendon_offset=0.0 if ports is None else ports.tendon_offset_m,
     )
     p = out.v.copy()
     p[..., 0] *= params.rhoA
     p[..., 1] *= params.rhoA
     p[..., 2] *= params.rhoI
-    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated, settings.scheme, out.dq)
+    return Trajectory(float(theta0_deg), out.t, out.q, p, params, out.dissipated, settings.scheme, out.dq,
+                      out.input_work, None if u is None else u[::settings.record_every], ports)
 
 
 def velocities(traj: Trajectory) -> np.ndarray:
@@ -162,12 +178,24 @@ def trajectory_frame(traj: Trajectory) -> pd.DataFrame:
 
 
 def energy_frame(traj: Trajectory) -> pd.DataFrame:
-    """One row per t: total energy H [J], dissipation rate [W], cumulative dissipated [J]."""
+    """One row per t: total energy H [J], dissipation rate [W], cumulative dissipated [J].
+
+    An actuated trajectory adds the cumulative work of its inputs ``input_work`` [J] (the
+    integrator's kick bookkeeping; H(t) - H(0) = input_work - dissipated up to the scheme's
+    O(dt^2) energy error), and per channel the input u and the collocated output y."""
     e = energy(traj)
     diss = traj.dissipated if traj.dissipated is not None else np.full(traj.t.shape, np.nan)
-    return pd.DataFrame({"t": traj.t, "H": e["H"], "dissipation_rate": e["dissipation_rate"],
-                         "dissipated": diss, "kinetic": e["kinetic"], "elastic": e["elastic"],
-                         "gravity": e["gravity"]})
+    df = pd.DataFrame({"t": traj.t, "H": e["H"], "dissipation_rate": e["dissipation_rate"],
+                       "dissipated": diss, "kinetic": e["kinetic"], "elastic": e["elastic"],
+                       "gravity": e["gravity"]})
+    if traj.input_work is not None:
+        df["input_work"] = traj.input_work
+        if traj.u is not None and traj.ports is not None:
+            y = traj.ports.outputs(traj.q, velocities(traj))
+            for k, c in enumerate(CHANNELS):
+                df[f"u_{c}"] = traj.u[:, k]
+                df[f"y_{c}"] = y[:, k]
+    return df
 
 
 def trajectory_from_frame(df: pd.DataFrame, params: RodParams) -> Trajectory:
