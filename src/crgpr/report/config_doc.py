@@ -49,7 +49,11 @@ def type_name(node: dict[str, Any]) -> str:
     if "enum" in node:
         return "one of " + ", ".join(f"`{v}`" for v in node["enum"])
     if "oneOf" in node or "anyOf" in node:
-        return " or ".join(type_name(alt) for alt in node.get("oneOf", node.get("anyOf")))
+        alts = node.get("oneOf", node.get("anyOf"))
+        kinds = [alt.get("properties", {}).get("kind", {}).get("const") for alt in alts]
+        if all(kinds):  # tagged mappings: name the tag's values
+            return "mapping, `kind` one of " + ", ".join(f"`{k}`" for k in kinds)
+        return " or ".join(type_name(alt) for alt in alts)
     t = node.get("type", "any")
     if t == "array":
         return f"list of {type_name(node.get('items', {}))}"
