@@ -22,10 +22,10 @@ import pandas as pd
 from crgpr.commands.camera import camera_data
 from crgpr.commands.learn import model_params
 from crgpr.config import load_config
-from crgpr.discovery.kinematics import smooth_kinematics
-from crgpr.discovery.measured import ScreenSettings, load_measured
 from crgpr.learning import camera
 from crgpr.learning.features import segments
+from crgpr.measured.kinematics import smooth_kinematics
+from crgpr.measured.records import ScreenSettings, load_measured
 
 
 def main() -> None:

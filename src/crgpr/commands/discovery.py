@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from crgpr.config import load_config, rod_params
-from crgpr.discovery.measured import ScreenSettings, load_measured
 from crgpr.discovery.selection import DiscoverySettings, discover
 from crgpr.discovery.synthetic import find_case, make_measured
 from crgpr.io import atomic_dir, write_json, write_parquet, write_text
+from crgpr.measured.records import ScreenSettings, load_measured
 from crgpr.physics.params import RodParams
 from crgpr.report.discovery import figures, report_markdown, summary
 

@@ -35,7 +35,6 @@ import numpy as np
 import pandas as pd
 
 from crgpr.config import ConfigError, rod_params, sim_settings
-from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
@@ -52,6 +51,7 @@ from crgpr.learning.nominal import (
     strain_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
+from crgpr.measured.records import MeasuredDataError, ScreenSettings, load_measured
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import Trajectory, trajectory_frame
