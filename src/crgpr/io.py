@@ -187,6 +187,10 @@ def read_parquet(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame
 
 
 TABLE_SUFFIXES: tuple[str, ...] = (".parquet", ".csv")
+# CSV numbers parsed to the nearest double (as Parquet stores them): pandas 3's parser does it
+# by default and deprecates the option that pandas 2 needs for it
+_CSV_EXACT: dict[str, Any] = ({} if int(pd.__version__.split(".")[0]) >= 3
+                               else {"float_precision": "round_trip"})
 
 
 def read_table(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame:
@@ -215,7 +219,7 @@ def read_table(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame:
             raise ValueError(f"{path}: not a readable Parquet file: {type(exc).__name__}: {exc}") from exc
     else:
         try:
-            df = pd.read_csv(path, skipinitialspace=True, encoding="utf-8-sig", float_precision="round_trip")
+            df = pd.read_csv(path, skipinitialspace=True, encoding="utf-8-sig", **_CSV_EXACT)
         except pd.errors.EmptyDataError as exc:
             raise ValueError(f"{path}: empty CSV file (no header row)") from exc
         except Exception as exc:  # noqa: BLE001 - the parser's many ways to fail on a bad file

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 
@@ -26,6 +26,11 @@ class DiscoverySettings:
     gp_max_points: int
     bootstrap_replicates: int
     seed: int
+
+    @classmethod
+    def config_keys(cls) -> tuple[str, ...]:
+        """The keys of the ``discovery`` config section these settings read (all but the seed)."""
+        return tuple(f.name for f in fields(cls) if f.name != "seed")
 
     @classmethod
     def from_config(cls, d: dict[str, Any], seed: int) -> DiscoverySettings:

@@ -27,7 +27,7 @@ impossible in most frames (wrong s, units or base position).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +54,11 @@ class ScreenSettings:
     outlier_k: float
     outlier_min_m: float
     geometry_tol: float
+
+    @classmethod
+    def config_keys(cls) -> tuple[str, ...]:
+        """The keys of the ``discovery`` config section these settings read."""
+        return tuple(f.name for f in fields(cls))
 
     @classmethod
     def from_config(cls, d: dict) -> ScreenSettings:
