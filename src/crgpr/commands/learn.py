@@ -2,8 +2,8 @@
 
 Input: the measured-data format of ``crgpr discover`` (Parquet or CSV by extension, one row
 per (t, marker): ``t``, ``node`` or ``s``, ``x``, ``y``; validated by ``crgpr.measured``), or a
-full-state file with ``theta, p_x, p_y, p_theta`` as well. Positions only: theta, momenta and derivatives by
-``crgpr.learning.camera`` (paper Sec. III-B Remark); full state: the stage-1 prefilter
+full-state file with ``theta, p_x, p_y, p_theta`` as well. Positions only: theta, momenta and
+derivatives by ``crgpr.learning.camera`` (paper Sec. III-B Remark); full state: the stage-1 prefilter
 (``crgpr.learning.prefilter``). The gradient GPs are then fitted by
 ``gradient_models.train_model_arrays``, exactly as in stage 2. The model's rod is the nominal
 ``rod`` of the config on the measured node grid (N = measured segments). The command takes
