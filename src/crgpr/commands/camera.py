@@ -1,4 +1,4 @@
-"""Rule functions of the camera workflow (workflow/rules/camera.smk; beyond the paper).
+"""Rule functions of the camera workflow (workflow/rules/camera.smk).
 
 * ``camera_data``: the camera version of a ground-truth trajectory: positions only, every
   node, the camera's frame rate, Gaussian noise on x and y (seeded);
