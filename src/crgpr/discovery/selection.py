@@ -43,6 +43,9 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    nominal gap's excess over the floor is below ``min_gap_rad``; otherwise ``unexplained``
    (no name is forced: a global effect that absorbs part of a disturbance it does not
    describe is reported as a partial attempt, with where the disturbance sits).
+
+The steps' mechanics live in ``locate`` (1), ``floor`` (2), ``regression``, ``trajectory`` and
+``stepwise`` (3); this module runs them on one record (``discover``) and assembles the verdict.
 """
 
 from __future__ import annotations
