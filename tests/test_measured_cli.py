@@ -127,6 +127,16 @@ def test_set_takes_rod_parameters_and_dotted_keys():
         "camera": {"learn": {"bending_inputs": ["kappa"], "nominal_laws": "auto"}}}
 
 
+def test_simulate_takes_the_rod_key_with_or_without_its_section(elsewhere):
+    """``--set rod.L0`` (as learn and discover take it) and ``--set L0`` are the same rod."""
+    for name, item in (("a", "L0=0.4"), ("b", "rod.L0=0.4")):
+        assert main(["simulate", "--theta0", "85", "--t-end", "0.002", "--out", f"{name}.parquet",
+                     "--set", item]) == 0
+    a, b = read_table(elsewhere / "a.parquet"), read_table(elsewhere / "b.parquet")
+    pd.testing.assert_frame_equal(a, b)
+    assert a["x"].max() == pytest.approx(0.4 * np.cos(np.radians(85)), rel=1e-3)  # the tip of a 0.4 m rod
+
+
 @pytest.mark.parametrize(("item", "named"), [
     ("L0", "expected KEY=VALUE"),
     ("tip_mass=0.01", "not a rod parameter"),

@@ -240,7 +240,8 @@ def sim_settings(cfg: dict[str, Any]) -> SimSettings:
 
 
 def parse_set(items: list[str]) -> dict[str, Any]:
-    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``).
+    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``, or
+    with the section named as in ``crgpr learn``: ``--set rod.E=2e6``).
 
     Only the syntax is checked here (a known key and a number); ``cli_rod_sim`` validates
     the values by the config file's rules.
@@ -250,7 +251,7 @@ def parse_set(items: list[str]) -> dict[str, Any]:
         if "=" not in item:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         key, raw = item.split("=", 1)
-        key = key.strip()
+        key = key.strip().removeprefix("rod.")
         if key not in PARAM_FIELDS:
             raise ConfigError(f"--set {key}: unknown rod parameter; known: {', '.join(PARAM_FIELDS)}")
         try:
