@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn
 from crgpr.config import load_config, rod_params
-from crgpr.discovery.measured import camera_frame
 from crgpr.io import write_parquet
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate

@@ -22,10 +22,10 @@ import pandas as pd
 from crgpr.commands.camera import camera_data
 from crgpr.commands.learn import model_params
 from crgpr.config import load_config
-from crgpr.discovery.kinematics import smooth_kinematics
-from crgpr.discovery.measured import ScreenSettings, load_measured
 from crgpr.learning import camera
 from crgpr.learning.features import segments
+from crgpr.measured.kinematics import smooth_kinematics
+from crgpr.measured.records import ScreenSettings, read_measured, validate_frame
 
 
 def main() -> None:
@@ -46,8 +46,10 @@ def main() -> None:
         rec = Path(tmp) / "camera.parquet"
         rate = cfg["camera"]["data"]["sample_rate_hz"]
         camera_data(a.ground_truth, str(rec), a.noise_mm, rate, cfg["seed"])
-        params = model_params(rec, cfg)
-        meas = load_measured(rec, params.L0, params.ds, ScreenSettings.from_config(cfg["discovery"]))
+        table = read_measured(rec)
+        params = model_params(table, cfg)
+        screen = ScreenSettings.from_config(cfg["discovery"])
+        meas = validate_frame(table, str(rec), params.L0, params.ds, screen)
         arr, rep = camera.positions_to_state(meas, params, "gp", st, int(cfg["seed"]) + 3000)
     g = pd.read_parquet(a.ground_truth).sort_values(["t", "node"])
     t = np.unique(g["t"].to_numpy())

@@ -16,10 +16,10 @@ from crgpr.cli import main
 from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn, load_learned, read_manifest
 from crgpr.config import load_config, rod_params
-from crgpr.discovery.measured import ScreenSettings, validate_frame
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
+from crgpr.measured.records import ScreenSettings, validate_frame
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
 from crgpr.report.metrics import accuracy
@@ -186,7 +186,7 @@ def test_markers_anywhere_with_dropped_frames(sim, tmp_path):
     within the shear-free reconstruction's error of the simulator's), the fd prefilter, which
     needs raw nodal positions, is refused with a named error, and crgpr learn runs end to end
     and records the markers it saw."""
-    from crgpr.discovery.kinematics import marker_positions
+    from crgpr.measured.kinematics import marker_positions
 
     P = sim.params
     s_m = np.array([0.04, 0.1, 0.17, 0.23, 0.29, 0.36, 0.43, 0.5])
@@ -222,7 +222,7 @@ def test_clamped_angle_fit_is_exact_for_a_polynomial_angle_profile(c, coef, n_se
     in s (order 4: curvature quadratic in s, a gravity-loaded cantilever's shape), clamped at c:
     the penalty does not see it, so the fit returns c and every nodal angle and rate exactly,
     whatever lam GCV picks."""
-    from crgpr.discovery.kinematics import chord_operator, clamped_angle_fit
+    from crgpr.measured.kinematics import chord_operator, clamped_angle_fit
 
     P = paper_rod(N=n_seg)
     s = P.s / P.L0

@@ -221,7 +221,7 @@ def runs(cfg, tmp_path_factory):
 # Measured misses on these 0.8 s records. The joint initial-state fit let the
 # initial state absorb most of a weak effect on a short record (viscous drag: 0.099 rad from
 # the true release, 0.018 rad from the fitted initial state), so the nominal gap fell below
-# the "none" threshold; the hidden-by-initial-state continuation (selection.entry_threshold)
+# the "none" threshold; the hidden-by-initial-state continuation (stepwise.entry_threshold)
 # names viscous_drag, rest_curvature and base_compliance again (measured: 0.0401, 1.034,
 # 0.235; on rest_curvature a stiffness_gradient proxy entered first and left the model at its
 # floor: the continuation added rest_curvature, backward elimination dropped the proxy).

@@ -14,19 +14,12 @@ import pytest
 from paper_rod import paper_rod
 
 from crgpr.config import load_config
+from crgpr.discovery.locate import local_stiffness_error, time_windows
+from crgpr.discovery.regression import Fit
 from crgpr.discovery.residual import Residual
-from crgpr.discovery.selection import (
-    DiscoverySettings,
-    Fit,
-    TrajectoryFit,
-    alternatives,
-    eliminate,
-    entry_threshold,
-    local_stiffness_error,
-    swap,
-    time_windows,
-    trajectory_delta_bic,
-)
+from crgpr.discovery.settings import DiscoverySettings
+from crgpr.discovery.stepwise import alternatives, eliminate, entry_threshold, swap, trajectory_delta_bic
+from crgpr.discovery.trajectory import TrajectoryFit
 from crgpr.physics.rod import segment_EI
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -224,8 +217,8 @@ def test_trajectory_fit_jacobian_is_the_derivative_of_its_residual():
     """The fitter's Jacobian: initial-state columns from the tangent-linear run (exact),
     coefficient columns by least_squares' own forward differences; both match central
     differences of the theta residual at the markers, and its residual is the fit's own."""
-    from crgpr.discovery.kinematics import Kinematics
-    from crgpr.discovery.selection import TrajectoryFitter, rod_state, run_model
+    from crgpr.discovery.trajectory import TrajectoryFitter, rod_state, run_model
+    from crgpr.measured.kinematics import Kinematics
 
     pr = paper_rod(N=10)
     n, period = 41, 0.005
@@ -298,8 +291,9 @@ def test_discretisation_floor_is_the_fitted_gap_and_ignores_spurious_initial_rat
     absorbs part of it), and is not inflated by a spurious initial rate mode in the measured
     state or in the fitted corrections it starts from: one fitted state run on both grids
     (a one-grid estimator) inflates it several times."""
-    from crgpr.discovery.kinematics import Kinematics, marker_matrix
-    from crgpr.discovery.selection import TrajectoryFitter, discretisation_error, rod_state, run_model
+    from crgpr.discovery.floor import discretisation_error
+    from crgpr.discovery.trajectory import TrajectoryFitter, rod_state, run_model
+    from crgpr.measured.kinematics import Kinematics, marker_matrix
     from crgpr.physics.rod import straight_rod
 
     pr = paper_rod(N=10)

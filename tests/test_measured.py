@@ -11,10 +11,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 from paper_rod import paper_rod
 
-from crgpr.discovery.kinematics import marker_matrix, node_angles, segment_angles, smooth_kinematics
-from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured, validate_frame
 from crgpr.discovery.synthetic import camera_frame
 from crgpr.io import write_parquet
+from crgpr.measured.kinematics import marker_matrix, node_angles, segment_angles, smooth_kinematics
+from crgpr.measured.records import MeasuredDataError, ScreenSettings, load_measured, validate_frame
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, velocities
 

@@ -2,7 +2,8 @@
 
 Every error is a ``ConfigError`` (one line) naming the offending key as a dotted path
 (``rod.L0``) and the file or the command-line options it came from. Command-line values
-(``crgpr simulate --set/--dt/--t-end``) go through the same schema and checks as the file.
+(``crgpr simulate --set/--dt/--t-end``, ``crgpr learn/discover --config/--set``) go through the
+same schema and checks as the file.
 Non-finite numbers (``.nan``, ``.inf``) are rejected everywhere: JSON schema bounds do
 not catch NaN.
 """
@@ -262,7 +263,8 @@ def sim_settings(cfg: dict[str, Any]) -> SimSettings:
 
 
 def parse_set(items: list[str]) -> dict[str, Any]:
-    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``).
+    """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``, or
+    with the section named as in ``crgpr learn``: ``--set rod.E=2e6``).
 
     Only the syntax is checked here (a known key and a number); ``cli_rod_sim`` validates
     the values by the config file's rules.
@@ -272,7 +274,7 @@ def parse_set(items: list[str]) -> dict[str, Any]:
         if "=" not in item:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         key, raw = item.split("=", 1)
-        key = key.strip()
+        key = key.strip().removeprefix("rod.")
         if key not in PARAM_FIELDS:
             raise ConfigError(f"--set {key}: unknown rod parameter; known: {', '.join(PARAM_FIELDS)}")
         try:
@@ -340,3 +342,81 @@ def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: f
     check_time_grid(params, sim, source)
     return params, SimSettings(dt=float(sim["dt_s"]), t_end=float(sim["t_end_s"]),
                                record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))
+
+
+def packaged_config_path() -> Path:
+    """The default configuration shipped with the package: the repository's config.yaml (the
+    paper's rod, Table I, and the project's settings), for commands run outside a checkout."""
+    return Path(str(resources.files("crgpr").joinpath("data/config.yaml")))
+
+
+def parse_config_sets(items: list[str], cfg: dict[str, Any]) -> dict[str, Any]:
+    """``KEY=VALUE`` overrides of a configuration ``cfg`` as a nested dict (for ``deep_merge``).
+
+    KEY is a rod parameter of the ``rod`` section (``L0``, as ``crgpr simulate --set``) or the
+    dotted path of any key of ``cfg`` (``rod.L0``, ``camera.learn.edge_trim_s``). VALUE is read
+    as an integer, else a float, else YAML (``true``, ``[kappa]``, a word). Only the syntax and
+    the key are checked here; the values are validated with the whole configuration.
+    """
+    rod_keys = set(schema()["properties"]["rod"]["properties"])
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
+        key, raw = (part.strip() for part in item.split("=", 1))
+        path = key.split(".") if "." in key else ["rod", key]
+        if "." not in key and key not in rod_keys:
+            raise ConfigError(f"--set {key}: not a rod parameter (known: {', '.join(sorted(rod_keys))}); "
+                              "another config value is named by its dotted key, e.g. rod.L0")
+        node: Any = cfg
+        for i, part in enumerate(path):
+            if not isinstance(node, dict) or part not in node:
+                raise ConfigError(f"--set {key}: unknown config key {'.'.join(path[:i + 1])}")
+            node = node[part]
+        try:
+            val: Any = int(raw)
+        except ValueError:
+            try:
+                val = float(raw)
+            except ValueError:
+                try:
+                    val = yaml.safe_load(raw)
+                except yaml.YAMLError as exc:
+                    raise ConfigError(f"--set {key}={raw!r}: not a value ({_short(str(exc), 80)})") from exc
+        nested: Any = val
+        for part in reversed(path):
+            nested = {part: nested}
+        out = deep_merge(out, nested)
+    return out
+
+
+def cli_config(path: str | None, sets: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The configuration of a command that reads measured data, taken as ``crgpr simulate``
+    takes its rod: ``--config FILE``, else ``./config.yaml`` if it exists, else the packaged
+    default (``packaged_config_path``: the paper's rod); then the ``--set`` overrides
+    (``parse_config_sets``), the result validated as a config file is.
+
+    Returns the configuration and its provenance (``config``: the file or "the packaged default
+    config"; ``set``: the overrides as given) for the output's manifest.
+    """
+    if path:
+        base_path, source = Path(path), str(path)
+    elif Path("config.yaml").exists():
+        base_path, source = Path("config.yaml"), "config.yaml"
+    else:
+        base_path, source = packaged_config_path(), "the packaged default config"
+    cfg = load_config(base_path)
+    if sets:
+        cfg = deep_merge(cfg, parse_config_sets(sets, cfg))
+        validate_config(cfg, f"{source} with {' '.join(f'--set {x}' for x in sets)}")
+    return cfg, {"config": source, "set": list(sets)}
+
+
+def add_config_options(parser: Any, what: str) -> None:
+    """``--config`` and ``--set`` of a command that reads measured data (``cli_config``);
+    ``parser`` is its ``argparse`` parser, ``what`` names the values it takes from the config."""
+    parser.add_argument("--config", default=None, help=f"config.yaml with {what} (default: ./config.yaml "
+                        "if it exists, else the packaged default config: the paper's rod)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a rod parameter (E=2e6) or any config value by its dotted key "
+                             "(rod.L0=0.4, camera.learn.edge_trim_s=0.1); repeatable")

@@ -186,6 +186,50 @@ def read_parquet(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame
     return df
 
 
+TABLE_SUFFIXES: tuple[str, ...] = (".parquet", ".csv")
+# CSV numbers parsed to the nearest double (as Parquet stores them): pandas 3's parser does it
+# by default and deprecates the option that pandas 2 needs for it
+_CSV_EXACT: dict[str, Any] = ({} if int(pd.__version__.split(".")[0]) >= 3
+                               else {"float_precision": "round_trip"})
+
+
+def read_table(path: str | Path, required: Sequence[str] = ()) -> pd.DataFrame:
+    """Read a user's table by its extension: ``.parquet`` or ``.csv`` (any case).
+
+    Every failure is one line naming the file: ``FileNotFoundError`` for a missing file,
+    ``ValueError`` for another extension (naming the accepted ones), an unreadable or empty
+    file, or a missing column of ``required``. CSV: comma-separated with a header row,
+    blanks after the commas and a byte-order mark ignored, empty cells and ``nan`` read as
+    missing, numbers parsed to the same doubles as Parquet holds (round-trip precision);
+    values are not converted here (the caller names a non-numeric column).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in TABLE_SUFFIXES:
+        raise ValueError(f"{path}: unsupported file type {path.suffix or '(no extension)'}; "
+                         f"expected one of {', '.join(TABLE_SUFFIXES)}")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    if suffix == ".parquet":
+        try:
+            df = read_parquet(path)
+        except ValueError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a corrupt file may fail anywhere in the decoder
+            raise ValueError(f"{path}: not a readable Parquet file: {type(exc).__name__}: {exc}") from exc
+    else:
+        try:
+            df = pd.read_csv(path, skipinitialspace=True, encoding="utf-8-sig", **_CSV_EXACT)
+        except pd.errors.EmptyDataError as exc:
+            raise ValueError(f"{path}: empty CSV file (no header row)") from exc
+        except Exception as exc:  # noqa: BLE001 - the parser's many ways to fail on a bad file
+            raise ValueError(f"{path}: not a readable CSV file: {type(exc).__name__}: {exc}") from exc
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {missing}; has {list(df.columns)}")
+    return df
+
+
 def read_metadata(path: str | Path) -> dict[str, Any]:
     """The crgpr metadata dict stored by ``write_parquet`` (empty if none)."""
     meta = pq.read_schema(path).metadata or {}

@@ -3,7 +3,9 @@
 Rules (``workflow/rules/discovery.smk``; rule = script = function): ``discovery_data``
 (camera-like record of one hidden-effect case + its truth, kept apart), ``discovery_run`` (the
 workflow on one measured file, never reading the truth), ``discovery_summary`` (table and
-figure over the cases). Every value comes from the rule's ``params`` (config.yaml).
+figure over the cases). Every value comes from the rule's ``params`` (config.yaml). The
+commands take their configuration as ``crgpr simulate`` takes the rod (``crgpr.config.cli_config``:
+the paper's rod by default, ``--config``, ``--set``); ``discovery.json`` records the values used.
 """
 
 from __future__ import annotations
@@ -15,11 +17,12 @@ import zlib
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import load_config, rod_params
-from crgpr.discovery.measured import ScreenSettings, load_measured
-from crgpr.discovery.selection import DiscoverySettings, discover
+from crgpr.config import add_config_options, cli_config, rod_params
+from crgpr.discovery.selection import discover
+from crgpr.discovery.settings import DiscoverySettings
 from crgpr.discovery.synthetic import find_case, make_measured
 from crgpr.io import atomic_dir, write_json, write_parquet, write_text
+from crgpr.measured.records import ScreenSettings, load_measured
 from crgpr.physics.params import RodParams
 from crgpr.report.discovery import figures, report_markdown, summary
 
@@ -37,12 +40,15 @@ def discovery_seed(seed: int) -> int:
 
 
 def run_discovery(measured: str | Path, out_dir: str | Path, rod: RodParams, dt_s: float,
-                  d: dict[str, Any], seed: int) -> dict[str, Any]:
-    """Load, discover and write OUT/discovery.json, OUT/report.md and the figures.
+                  d: dict[str, Any], seed: int, provenance: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Load (``.parquet`` or ``.csv``), discover and write OUT/discovery.json, OUT/report.md and
+    the figures.
 
-    ``d`` is the ``discovery`` config section. The output directory is written atomically
-    (a temporary directory renamed into place) under a lock: a concurrent run into the same
-    directory fails at once instead of both reporting success.
+    ``d`` is the ``discovery`` config section; ``discovery.json``'s ``config`` holds the values
+    used (rod, time step, seed, the section's keys read) and ``provenance`` (``cli_config``).
+    The output directory is written atomically (a temporary directory renamed into place)
+    under a lock: a concurrent run into the same directory fails at once instead of both
+    reporting success.
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -54,6 +60,10 @@ def run_discovery(measured: str | Path, out_dir: str | Path, rod: RodParams, dt_
     with atomic_dir(out) as tmp:
         res = discover(meas, rod, dt_s, st)
         result = res["result"]
+        result["config"] = {**(provenance or {}), "seed": seed, "rod": rod.to_dict(),
+                            "simulation": {"dt_s": dt_s},
+                            "discovery": {k: d[k] for k in (*ScreenSettings.config_keys(),
+                                                            *DiscoverySettings.config_keys())}}
         files = figures(tmp, res["arrays"], result)
         write_text(report_markdown(result, files), tmp / "report.md")
         write_json(result, tmp / "discovery.json")
@@ -94,27 +104,23 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
                                    "config.yaml, locate the disagreement, name the missing effect "
                                    "among the candidate library, add it and report the gap.")
     p.add_argument("--measured", required=True,
-                   help="Parquet file: t [s], s [m] or node, x, y [m] (rows in any order; NaN = missing)")
+                   help="Parquet or CSV file, by extension: t [s], s [m] or node, x, y [m] (rows in any "
+                        "order; NaN or an empty cell = missing)")
     p.add_argument("--out", required=True, help="output directory (discovery.json, report.md, figures)")
-    p.add_argument("--config", default=None,
-                   help="config.yaml with the nominal model (default ./config.yaml)")
+    add_config_options(p, "the nominal model and the discovery settings")
     p.set_defaults(func=_cli)
     g = sub.add_parser("discover-data", help="camera-like data of a hidden-effect case (for tests/demos)")
     g.add_argument("--case", required=True, help="name of a case in discovery.cases of the config")
     g.add_argument("--out", required=True, help="measured Parquet file to write")
     g.add_argument("--truth-out", required=True, help="truth JSON to write (keep it away from discover)")
-    g.add_argument("--config", default=None)
+    add_config_options(g, "the case and the rod")
     g.set_defaults(func=_cli_data)
 
 
-def _cfg(path: str | None) -> dict[str, Any]:
-    return load_config(path or "config.yaml")
-
-
 def _cli(args: argparse.Namespace) -> None:
-    cfg = _cfg(args.config)
+    cfg, provenance = cli_config(args.config, args.set)
     res = run_discovery(args.measured, args.out, rod_params(cfg), float(cfg["simulation"]["dt_s"]),
-                        cfg["discovery"], int(cfg["seed"]))
+                        cfg["discovery"], int(cfg["seed"]), provenance)
     for note in res["input"]["notes"]:
         print(f"crgpr discover: warning: {args.measured}: {note}", file=sys.stderr)
     print(f"verdict: {res['verdict']}; effects: {[e['name'] for e in res['effects']]}; gap "
@@ -122,7 +128,7 @@ def _cli(args: argparse.Namespace) -> None:
 
 
 def _cli_data(args: argparse.Namespace) -> None:
-    cfg = _cfg(args.config)
+    cfg, _ = cli_config(args.config, args.set)
     try:
         find_case(cfg["discovery"]["cases"], args.case)
     except KeyError as exc:

@@ -1,12 +1,14 @@
 """``crgpr learn``: CR-GPR gradient models from a user's trajectory file (positions only or full state).
 
-Input: the measured-data format of ``crgpr discover`` (Parquet, one row per (t, node):
-``t, node, x, y``; validated by ``crgpr.discovery.measured``), or a full-state file with
-``theta, p_x, p_y, p_theta`` as well. Positions only: theta, momenta and derivatives by
-``crgpr.learning.camera`` (paper Sec. III-B Remark); full state: the stage-1 prefilter
+Input: the measured-data format of ``crgpr discover`` (Parquet or CSV by extension, one row
+per (t, marker): ``t``, ``node`` or ``s``, ``x``, ``y``; validated by ``crgpr.measured``), or a
+full-state file with ``theta, p_x, p_y, p_theta`` as well. Positions only: theta, momenta and
+derivatives by ``crgpr.learning.camera`` (paper Sec. III-B Remark); full state: the stage-1 prefilter
 (``crgpr.learning.prefilter``). The gradient GPs are then fitted by
 ``gradient_models.train_model_arrays``, exactly as in stage 2. The model's rod is the nominal
-``rod`` of the config on the measured node grid (N = measured segments).
+``rod`` of the config on the measured node grid (N = measured segments). The command takes
+its configuration as ``crgpr simulate`` takes the rod (``crgpr.config.cli_config``: the
+paper's rod by default, ``--config``, ``--set``).
 
 Grey box (objective features, ``camera.learn.nominal_laws``): the stretch and shear laws n1, n2
 that the positions cannot resolve come from the nominal rod (``learning.nominal.NominalLaw``)
@@ -15,9 +17,10 @@ made from the strain signal-to-noise ratios, which the manifest records with the
 
 MODEL_DIR holds one ``.npz`` + ``.json`` per gradient model and ``manifest.json`` (written
 last; its presence marks a complete directory): features, prefilter, input kind, source file,
-rod parameters, the derived-state report (estimated noise level, frames used), the laws taken
-from the nominal rod (``nominal_laws``, ``strain_snr``; ``models`` lists the learned ones) and the seeds,
-so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
+rod parameters, the configuration values used (``config``: its source, the ``--set`` overrides
+and the sections read), the derived-state report (estimated noise level, frames used), the laws
+taken from the nominal rod (``nominal_laws``, ``strain_snr``; ``models`` lists the learned ones)
+and the seeds, so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
 """
 
 from __future__ import annotations
@@ -34,10 +37,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.config import ConfigError, rod_params, sim_settings
-from crgpr.discovery.measured import MeasuredDataError, ScreenSettings, load_measured
+from crgpr.config import ConfigError, add_config_options, cli_config, rod_params, sim_settings
 from crgpr.gp.evaluators import load_evaluator
-from crgpr.io import code_version, read_parquet, write_json, write_parquet
+from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
@@ -53,6 +55,7 @@ from crgpr.learning.nominal import (
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.rest_curvature import rest_curvature_estimate
+from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
@@ -73,41 +76,41 @@ def model_names(features: str) -> list[str]:
     return [*comps, *MOMENTUM_MODELS]
 
 
-def model_params(path: str | Path, cfg: dict[str, Any]) -> RodParams:
-    """The model's rod: ``rod`` of the config on the file's node grid.
+def model_params(table: pd.DataFrame, cfg: dict[str, Any]) -> RodParams:
+    """The model's rod: ``rod`` of the config on the node grid of a measured table.
 
-    A file with a ``node`` column puts its markers at s = node * ds with N = its largest
-    node (the camera's grid, ds = L0 / N); a file with ``s`` (markers anywhere) keeps the
-    config's N, and the state is rebuilt on that grid (``learning.camera``).
+    A table with a ``node`` column puts its markers at s = node * ds with N = its largest
+    node (the camera's grid, ds = L0 / N); a table with ``s`` (markers anywhere) keeps the
+    config's N, and the state is rebuilt on that grid (``learning.camera``). Values that are
+    not numbers are left to the loader, which names them.
     """
     params = rod_params(cfg)
-    try:
-        nodes = pd.read_parquet(path, columns=["node"])["node"].to_numpy(dtype=float)
-    except Exception:  # noqa: BLE001 - no node column (or unreadable: the loader names the error)
+    if "node" not in table.columns:
         return params
+    nodes = pd.to_numeric(table["node"], errors="coerce").to_numpy(dtype=float)
     n = int(np.nanmax(nodes)) if nodes.size and np.isfinite(nodes).any() else 0
     return replace(params, N=n) if n >= 1 else params
 
 
-def _full_state_momenta(path: str | Path, n_t: int, n_nodes: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """(n_t, N+1) theta and (n_t, N+1, 3) momenta of a full-state file, or None (positions only)."""
-    df = read_parquet(path)
+def _full_state_momenta(df: pd.DataFrame, source: str, n_t: int, n_nodes: int
+                        ) -> tuple[np.ndarray, np.ndarray] | None:
+    """(n_t, N+1) theta and (n_t, N+1, 3) momenta of a full-state table, or None (positions only)."""
     present = [c for c in MOMENTUM_COLUMNS if c in df.columns]
     if not present:
         return None
     if len(present) < 3 or "theta" not in df.columns:
         missing = [c for c in ("theta", *MOMENTUM_COLUMNS) if c not in df.columns]
-        raise MeasuredDataError(f"{path}: a full-state file needs theta, p_x, p_y, p_theta; "
+        raise MeasuredDataError(f"{source}: a full-state file needs theta, p_x, p_y, p_theta; "
                                 f"missing {missing}")
     d = df.sort_values(["t", "node"], kind="stable")
     out = np.empty((n_t, n_nodes, 4))
     for k, c in enumerate((*MOMENTUM_COLUMNS, "theta")):
-        v = d[c].to_numpy(dtype=float)
+        v = pd.to_numeric(d[c], errors="coerce").to_numpy(dtype=float)
         if not np.all(np.isfinite(v)):
-            raise MeasuredDataError(f"{path}: column {c!r} has {int((~np.isfinite(v)).sum())} "
-                                    "non-finite value(s)")
+            raise MeasuredDataError(f"{source}: column {c!r} has {int((~np.isfinite(v)).sum())} "
+                                    "non-numeric or non-finite value(s)")
         if v.size != n_t * n_nodes:
-            raise MeasuredDataError(f"{path}: column {c!r} does not fill the (t, node) grid")
+            raise MeasuredDataError(f"{source}: column {c!r} does not fill the (t, node) grid")
         out[..., k] = v.reshape(n_t, n_nodes)
     return out[..., 3], out[..., :3]
 
@@ -121,13 +124,25 @@ def port_inputs_per_length(arr: dict[str, np.ndarray], params: RodParams, inputs
     return ports.nodal_forces(q, inputs.values(arr["t"])) / wds[:, None]
 
 
+def used_config(cfg: dict[str, Any], kind: str) -> dict[str, Any]:
+    """The configuration values ``learn`` reads for an input of ``kind`` (for the manifest)."""
+    used = {"seed": cfg["seed"], "rod": cfg["rod"],
+            "discovery": {k: cfg["discovery"][k] for k in ScreenSettings.config_keys()},
+            "camera": {"learn": cfg["camera"]["learn"]}, "gradient_models": cfg["gradient_models"]}
+    return {**used, "prefilter": cfg["prefilter"]} if kind == "full_state" else used
+
+
 def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], features: str = "objective",
-          prefilter_method: str = "gp", inputs_file: str | Path | None = None) -> dict[str, Any]:
-    """Train the gradient models of ``features`` from a trajectory file into ``out_dir``.
+          prefilter_method: str = "gp", inputs_file: str | Path | None = None,
+          provenance: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Train the gradient models of ``features`` from a trajectory file (``.parquet`` or ``.csv``)
+    into ``out_dir``.
 
     ``inputs_file``: the actuation inputs that drove the record (``physics.signals.read_inputs``:
     ``t`` and one column per channel, covering the record's time range); the targets subtract
-    their G(z) u as eq. (13) does (``ports`` of the config: the G used is in the manifest)."""
+    their G(z) u as eq. (13) does (``ports`` of the config: the G used is in the manifest).
+    ``provenance`` (where ``cfg`` came from, ``cli_config``) goes to the manifest with the values
+    used."""
     t_start = time.perf_counter()
     names = model_names(features)
     if prefilter_method not in PREFILTERS:
@@ -137,12 +152,13 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     cam = cfg["camera"]["learn"]
     st = LearnSettings.from_config(cam)
     disc = cfg["discovery"]
-    params = model_params(measured, cfg)
-    meas = load_measured(measured, params.L0, params.ds, ScreenSettings.from_config(disc))
+    table = read_measured(measured)
+    params = model_params(table, cfg)
+    meas = validate_frame(table, str(measured), params.L0, params.ds, ScreenSettings.from_config(disc))
     inputs = None if inputs_file is None else read_inputs(inputs_file, float(meas.t[-1]), float(meas.t[0]))
     ports = None if inputs is None else ports_from_config(cfg)
     seed = int(cfg["seed"]) + 3000
-    full = _full_state_momenta(measured, meas.t.size, meas.x.shape[1])
+    full = _full_state_momenta(table, str(measured), meas.t.size, meas.x.shape[1])
     if full is None:
         arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed)
         kind = "positions"
@@ -221,7 +237,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
-                "source": str(measured), "rod": params.to_dict(), "state": state_report,
+                "source": str(measured), "rod": params.to_dict(),
+                "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
                 "trim_ends": trim, "trim_ends_per_model": trims,
                 "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
@@ -329,8 +346,9 @@ def initial_state(path: str | Path, cfg: dict[str, Any], params: RodParams, pref
     record, whose time derivatives give the velocities, hence p = rho A v, rho I omega), taken at
     the first frame it keeps (``camera.learn.edge_trim_s`` after the record's start, where the
     GP derivatives are no longer end-affected)."""
-    meas = load_measured(path, params.L0, params.ds, ScreenSettings.from_config(cfg["discovery"]))
-    full = _full_state_momenta(path, meas.t.size, meas.x.shape[1])
+    table = read_measured(path)
+    meas = validate_frame(table, str(path), params.L0, params.ds, ScreenSettings.from_config(cfg["discovery"]))
+    full = _full_state_momenta(table, str(path), meas.t.size, meas.x.shape[1])
     if full is not None:
         check_node_grid(meas, params)
         theta, p = full
@@ -398,25 +416,24 @@ def try_rollout(model: LearnedRod, theta0_deg: float, st: SimSettings) -> tuple[
 def add_cli(sub: Any) -> None:
     p = sub.add_parser("learn", help="train CR-GPR gradient models from a trajectory file",
                        description="Train the gradient GPs of CR-GPR from measured positions "
-                                   "(t, node, x, y) or a full-state file (t, node, x, y, theta, p_x, "
+                                   "(t, node or s, x, y) or a full-state file (t, node, x, y, theta, p_x, "
                                    "p_y, p_theta); theta and momenta are derived from positions "
                                    "with the nominal rod's mass distribution.")
-    p.add_argument("--measured", required=True, help="Parquet file (the format of crgpr discover)")
+    p.add_argument("--measured", required=True,
+                   help="Parquet or CSV file, by extension (the format of crgpr discover)")
     p.add_argument("--out", required=True, help="model directory to write (npz/json + manifest.json)")
     p.add_argument("--features", choices=FEATURES, default="objective")
     p.add_argument("--prefilter", choices=PREFILTERS, default="gp")
     p.add_argument("--inputs", help="actuation inputs that drove the record: Parquet or CSV with t [s] "
                    "and one column per channel (tip_force_x, tip_force_y, tip_moment, tendon_tension); "
                    "docs/ports.md")
-    p.add_argument("--config", default="config.yaml",
-                   help="config.yaml (nominal rod, camera, gradient_models)")
+    add_config_options(p, "the nominal rod, camera.learn, gradient_models")
     p.set_defaults(func=_cli)
 
 
 def _cli(args: Any) -> None:
-    from crgpr.config import load_config
-
-    man = learn(args.measured, args.out, load_config(args.config), args.features, args.prefilter, args.inputs)
+    cfg, provenance = cli_config(args.config, args.set)
+    man = learn(args.measured, args.out, cfg, args.features, args.prefilter, args.inputs, provenance)
     noise = man["state"].get("noise_std_m_estimated")
     print(f"learned {man['features']} models ({man['prefilter']} prefilter, {man['input']} input, "
           f"N = {man['rod']['N']}" + (f", noise {noise * 1e3:.3g} mm" if noise else "") +

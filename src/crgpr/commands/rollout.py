@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crgpr.config import ConfigError, load_config
+from crgpr.config import ConfigError, add_config_options, cli_config
 from crgpr.learning import learned
 
 
@@ -45,12 +45,12 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--energy-out")
     p.add_argument("--t-end", type=float,
                    help="simulated time [s] (manifest models; default simulation.t_end_s)")
-    p.add_argument("--config", default="config.yaml")
+    add_config_options(p, "simulation settings, ports and, with --method, rollouts.methods")
     p.set_defaults(func=_cli_rollout)
 
 
 def _cli_rollout(a: argparse.Namespace) -> None:
-    cfg = load_config(a.config)
+    cfg, _ = cli_config(a.config, a.set)
     if a.method is None:
         from crgpr.commands.learn import rollout_models
 

@@ -1,18 +1,21 @@
-"""Missing-physics workflow (beyond the paper).
+"""Missing-physics workflow (beyond the paper), on measured records (``crgpr.measured``).
 
-* ``measured``: loading, validating and screening camera markers (``load_measured``);
-* ``kinematics``: GP smoothing in time, the rod on the model grid from the markers;
 * ``effects``: the library of candidate effects (``EFFECTS``);
 * ``residual``: the cut-moment (port-Hamiltonian) residual and each candidate's signature;
-* ``selection``: locate, floor, stepwise selection confirmed by trajectory fits (``discover``);
+* ``settings``: the selection settings of the ``discovery`` config section;
+* ``trajectory``: the model simulated from a fitted initial state and fitted to the markers;
+* ``regression``: the candidates' regression on the residual (BIC, autocorrelation);
+* ``locate``: where, when and in which state group the nominal model departs;
+* ``floor``: the gap with nothing missing (camera noise, initial state, discretisation);
+* ``stepwise``: entry threshold, backward elimination, swaps, indistinguishable alternatives;
+* ``selection``: the workflow (``discover``);
 * ``synthetic``: camera-like records of hidden-effect cases (``make_measured``).
 Figures and reports are in ``crgpr.report.discovery``; rules and CLI in
 ``crgpr.commands.discovery``.
 """
 
 from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS, Effect, effect_params
-from crgpr.discovery.measured import Measured, MeasuredDataError, ScreenSettings, load_measured
-from crgpr.discovery.selection import DiscoverySettings, discover
+from crgpr.discovery.selection import discover
+from crgpr.discovery.settings import DiscoverySettings
 
-__all__ = ["EFFECTS", "EFFECT_NAMES", "DiscoverySettings", "Effect", "Measured", "MeasuredDataError",
-           "ScreenSettings", "discover", "effect_params", "load_measured"]
+__all__ = ["EFFECTS", "EFFECT_NAMES", "DiscoverySettings", "Effect", "discover", "effect_params"]

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.discovery.effects import effect_params
-from crgpr.discovery.kinematics import marker_positions
+from crgpr.measured.kinematics import marker_positions
 from crgpr.physics.integrator import kelvin_voigt_propagator, run_generic, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, segment_EI, straight_rod

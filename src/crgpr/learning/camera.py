@@ -2,7 +2,7 @@
 
 The paper's Remark: a real experiment observes positions only; theta follows from neighbouring
 positions and the momenta from the known mass distribution. Given measured node positions
-x_i(t), y_i(t) (``crgpr.discovery.measured.Measured``, validated by its loader), this module
+x_i(t), y_i(t) (``crgpr.measured.Measured``, validated by its loader), this module
 returns the arrays of the derivative data set E (eq. (12)) in the schema of
 ``prefilter.prefiltered_arrays``, so the gradient GPs (``gradient_models.train_model_arrays``)
 are trained exactly as from the simulator's full state:
@@ -11,7 +11,7 @@ are trained exactly as from the simulator's full state:
   nodal angles theta_i are fitted to them along s (the model's segment j lies at the mid-segment
   angle (theta_j + theta_{j+1})/2, exact for a rod without shear), theta_0 one clamp angle for
   the whole record, a penalty on the ``camera.learn.angle_penalty_order``-th difference of theta
-  (``discovery.kinematics.clamped_angle_fit``); with ``fd``, theta_i = (phi_{i-1} + phi_i)/2 of
+  (``measured.kinematics.clamped_angle_fit``); with ``fd``, theta_i = (phi_{i-1} + phi_i)/2 of
   the raw segment angles and linear extrapolation at the ends (``kinematics.node_angles``);
 * momenta per unit length (nominal rod): p_x = rho A dx/dt, p_y = rho A dy/dt,
   p_theta = rho I dtheta/dt (the simulator's definition, ``physics.simulate.Trajectory``);
@@ -32,7 +32,7 @@ are trained exactly as from the simulator's full state:
 Nothing here assumes the data came from our simulator: with a ``node`` column the node grid is
 the camera's (N = measured segments, s_i = i L0 / N); with an ``s`` column (markers anywhere,
 ``gp`` prefilter) the model keeps the config's grid and the state is rebuilt on it from the
-markers (``discovery.kinematics.smooth_kinematics``); the time grid is the camera's.
+markers (``measured.kinematics.smooth_kinematics``); the time grid is the camera's.
 """
 
 from __future__ import annotations
@@ -41,9 +41,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.discovery.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
-from crgpr.discovery.measured import Measured, MeasuredDataError
 from crgpr.learning.prefilter import fd_time_derivatives, output_indices, spatial_derivatives
+from crgpr.measured.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
+from crgpr.measured.records import Measured, MeasuredDataError
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import STATE_NAMES
 
@@ -96,7 +96,7 @@ def fd_kinematics(meas: Measured) -> Kinematics:
 def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int) -> Kinematics:
     """The GP prefilter of the positions (noise level fitted on the data), see module docstring.
 
-    ``discovery.kinematics.smooth_kinematics`` on the model grid, the base clamped: the nodal
+    ``measured.kinematics.smooth_kinematics`` on the model grid, the base clamped: the nodal
     angles are fitted along s with one clamp angle for the record and the difference of order
     ``camera.learn.angle_penalty_order`` penalised (``kinematics.clamped_angle_fit``).
     """

@@ -111,7 +111,7 @@ def segment_curvature_snr(m: np.ndarray, EI: float, kappa_noise: np.ndarray) -> 
     """Curvature signal-to-noise of each segment (N,): rms over frames of the bending targets m
     (n_t, N) (from the force balance, eq. (13), so independent of the curvature reconstruction)
     over EI, divided by that segment's reconstructed-curvature noise sd
-    (``discovery.kinematics.clamped_angle_fit``; NaN = unknown, kept). Below
+    (``measured.kinematics.clamped_angle_fit``; NaN = unknown, kept). Below
     ``camera.learn.snr_min`` a segment's curvature input is mostly noise: kept in a regression
     of m on it, it would flatten the learned law where the data crowd (errors in variables:
     E[kappa | kappa_est] shrinks)."""

@@ -1,11 +1,12 @@
 """Measured (camera) rod data: loading, validation, gross-outlier and geometry screening.
 
-A measured file is Parquet (or a table) with one row per observation of one marker:
+A measured file is a table, Parquet (``.parquet``) or CSV (``.csv``, e.g. a motion-capture
+export; ``crgpr.io.read_table``), with one row per observation of one marker:
 ``t`` [s], the marker's place along the rod as either ``s`` [m] (arc length from the base,
 markers anywhere) or ``node`` (an integer, s = node * ds on the model grid), and its position
 ``x``, ``y`` [m] in the model's frame (base at the origin unless a base marker s = 0 is given).
 Any number >= 4 of markers; rows in any order. Following the paper's Remark in Sec. III-B,
-positions are the measurement: angles and momenta are derived (``crgpr.discovery.kinematics``).
+positions are the measurement: angles and momenta are derived (``crgpr.measured.kinematics``).
 
 Tolerated and reported (never silently):
 * dropped frames and occlusions: missing rows or NaN/inf in x, y -> missing samples;
@@ -16,22 +17,23 @@ Tolerated and reported (never silently):
   shorter than half of it, beyond ``outlier_k`` standard deviations of the chord's noise, or
   turning by more than 3 pi / 4) are excluded;
 * a marker with fewer than ``min_samples`` usable samples is dropped.
-Rejected with one line naming the file (``MeasuredDataError``): an empty or unreadable file,
-missing or non-numeric columns, non-finite t or s, s outside [0, L0], duplicate (t, marker)
-rows, times off a uniform grid, a rate below ``min_rate_hz``, too few frames or markers, and a
-geometry that is impossible in most frames (wrong s, units or base position).
+Rejected with one line naming the file (``MeasuredDataError``): an empty or unreadable file, a
+file that is neither ``.parquet`` nor ``.csv``, missing or non-numeric columns (naming the
+column), non-finite t or s, s outside [0, L0], duplicate (t, marker) rows, times off a uniform
+grid, a rate below ``min_rate_hz``, too few frames or markers, and a geometry that is
+impossible in most frames (wrong s, units or base position).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from crgpr.io import read_parquet
+from crgpr.io import read_table
 
 MARKER_COLUMNS: tuple[str, ...] = ("t", "x", "y")
 PLACE_COLUMNS: tuple[str, ...] = ("s", "node")
@@ -52,6 +54,11 @@ class ScreenSettings:
     outlier_k: float
     outlier_min_m: float
     geometry_tol: float
+
+    @classmethod
+    def config_keys(cls) -> tuple[str, ...]:
+        """The keys of the ``discovery`` config section these settings read."""
+        return tuple(f.name for f in fields(cls))
 
     @classmethod
     def from_config(cls, d: dict) -> ScreenSettings:
@@ -352,14 +359,15 @@ def _geometry_screen(meas: Measured, tol: float, slack: float) -> tuple[np.ndarr
     return excl, n_bad / max(n_frames, 1)
 
 
-def load_measured(path: str | Path, L0: float, ds: float, st: ScreenSettings) -> Measured:
-    """Read, validate and screen a measured Parquet file (see module docstring)."""
+def read_measured(path: str | Path) -> pd.DataFrame:
+    """The table of a measured file (``.parquet`` or ``.csv``), unvalidated; ``MeasuredDataError``
+    (one line naming the file) if it is missing, of another kind or unreadable."""
     try:
-        df = read_parquet(path)
-    except FileNotFoundError as exc:
-        raise MeasuredDataError(str(exc)) from exc
-    except ValueError as exc:
-        raise MeasuredDataError(str(exc)) from exc
-    except Exception as exc:  # noqa: BLE001 - a corrupt file may fail anywhere in the decoder
-        raise MeasuredDataError(f"{path}: not a readable Parquet file: {type(exc).__name__}: {exc}") from exc
-    return validate_frame(df, str(path), L0, ds, st)
+        return read_table(path)
+    except (OSError, ValueError) as exc:
+        raise MeasuredDataError(" ".join(str(exc).split())) from exc
+
+
+def load_measured(path: str | Path, L0: float, ds: float, st: ScreenSettings) -> Measured:
+    """Read, validate and screen a measured file (see module docstring)."""
+    return validate_frame(read_measured(path), str(path), L0, ds, st)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.discovery.measured import Measured
+from crgpr.measured.records import Measured
 from crgpr.physics.params import RodParams
 
 
@@ -155,7 +155,8 @@ def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray
     quadratic in c) and lam by GCV pooled over ``psi_frames``. Order 4 penalises d2 kappa/ds2
     only: the static moment balance m'' = load makes a gravity-loaded cantilever's curvature
     quadratic in s, which order 2 (d kappa/ds, a cubic-spline prior) shrinks where it is largest,
-    at the clamp (the camera record of issue 13: kappa_0 0.90x, clamp 0.045 rad low). Returns S
+    at the clamp (order 2 on the camera record of the training run: kappa_0 0.90x, clamp
+    0.045 rad low; ``benchmarks/camera_curvature_bias.py``). Returns S
     (N, n_chords) and h (N,) with theta_1..N = S psi - h c, so that rates, whose clamp value is
     zero, are S dpsi/dt; c from ``psi_all``. The chord-angle noise variance is the pooled
     residual sum of squares over the residual degrees of freedom (``psi_all``), propagated
