@@ -347,7 +347,8 @@ def initial_state(path: str | Path, cfg: dict[str, Any], params: RodParams, pref
     the first frame it keeps (``camera.learn.edge_trim_s`` after the record's start, where the
     GP derivatives are no longer end-affected)."""
     table = read_measured(path)
-    meas = validate_frame(table, str(path), params.L0, params.ds, ScreenSettings.from_config(cfg["discovery"]))
+    screen = ScreenSettings.from_config(cfg["discovery"])
+    meas = validate_frame(table, str(path), params.L0, params.ds, screen)
     full = _full_state_momenta(table, str(path), meas.t.size, meas.x.shape[1])
     if full is not None:
         check_node_grid(meas, params)
