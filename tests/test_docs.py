@@ -44,8 +44,8 @@ def test_every_config_key_has_a_description_and_a_row():
     def leaves(d, prefix=""):
         for k, v in d.items():
             key = f"{prefix}{k}"
-            if isinstance(v, dict) and key not in {"rollouts.methods", "variants.definitions", "ports.signals",
-                                                    "variants.methods"}:
+            if isinstance(v, dict) and key not in {"rollouts.methods", "variants.definitions",
+                                                    "ports.signals", "variants.methods"}:
                 yield from leaves(v, key + ".")
             else:
                 yield key
