@@ -8,12 +8,13 @@ free degrees of freedom
 for the learned -dH/dq (``LearnedRod.internal``, per unit length), the gravity load per length
 f_g and the tip channels ``tip_force_x``, ``tip_force_y``, ``tip_moment``. Together with the
 tip pose constraints x_N = x*, y_N = y* (and phi = phi*, the last segment's chord angle, when
-an angle is targeted) this is a square system in (q_free, u): 3N equations of force balance plus
-3 pose/input conditions. For a position-only target the tip moment is not used
-(u_moment = 0, the documented choice: the rod takes the shape a pure tip force gives it). The
-system is solved by Newton's method (Levenberg-Marquardt damped) with a finite-difference Jacobian in the rod's angle/strain
-coordinates (``from_strains``), started from a smooth shape that reaches the target
-(``shape_guess``) or from a neighbouring equilibrium, and its residual reported.
+an angle is targeted) this is a square system in (q_free, u): 3N equations of force balance
+plus 3 pose/input conditions. For a position-only target the tip moment is not used
+(u_moment = 0, the documented choice: the rod takes the shape a pure tip force gives it).
+The system is solved by Newton's method (Levenberg-Marquardt damped) with a finite-difference
+Jacobian in the rod's angle/strain coordinates (``from_strains``), started from a smooth shape
+that reaches the target (``shape_guess``) or from a neighbouring equilibrium; the residual is
+reported.
 """
 
 from __future__ import annotations
