@@ -79,7 +79,7 @@ def learned_plant(model: LearnedRod, settings: SimSettings, ports: Ports) -> Pla
 class ClosedLoop:
     """Samples of a closed-loop run: t (n,), tip pose and rate (n, 3), inputs (n, channels),
     the target and u_ff (n, ...), the port work so far [J] (n,), and the rod's shape at every
-    ``keep_every``-th sample (t_shapes, shapes)."""
+    ``keep_every``-th sample (t_shapes, shapes, and the velocities there, shape_rates)."""
 
     t: np.ndarray
     pose: np.ndarray
@@ -89,6 +89,7 @@ class ClosedLoop:
     work: np.ndarray
     t_shapes: np.ndarray
     shapes: np.ndarray
+    shape_rates: np.ndarray
     q: np.ndarray
     v: np.ndarray
 
@@ -98,7 +99,7 @@ def run_closed_loop(policy: Policy, plant: Plant, q0: np.ndarray, v0: np.ndarray
     """Run ``policy`` on ``plant`` from (q0, v0) for ``t_end`` seconds, sampling at ``rate_hz``."""
     n = int(round(t_end * rate_hz))
     q, p = np.array(q0, dtype=float), plant.momentum(np.array(v0, dtype=float))
-    rows_t, poses, rates, us, tgts, works, shapes, t_sh = [], [], [], [], [], [], [], []
+    rows_t, poses, rates, us, tgts, works, shapes, t_sh, vs = [], [], [], [], [], [], [], [], []
     work = 0.0
     for k in range(n + 1):
         t = k / rate_hz
@@ -113,6 +114,7 @@ def run_closed_loop(policy: Policy, plant: Plant, q0: np.ndarray, v0: np.ndarray
         works.append(work)
         if k % keep_every == 0 or k == n:
             shapes.append(q.copy())
+            vs.append(v.copy())
             t_sh.append(t)
         if k == n:
             break
@@ -120,4 +122,4 @@ def run_closed_loop(policy: Policy, plant: Plant, q0: np.ndarray, v0: np.ndarray
         q, p, w = plant.step(q, p, u_map)
         work += w
     return ClosedLoop(np.array(rows_t), np.array(poses), np.array(rates), np.array(us), np.array(tgts),
-                      np.array(works), np.array(t_sh), np.array(shapes), q, v)
+                      np.array(works), np.array(t_sh), np.array(shapes), np.array(vs), q, v)
