@@ -198,7 +198,8 @@ def plant_for(kind: str, cfg: dict[str, Any]) -> tuple[RodParams, float]:
     return params, dt
 
 
-COLUMNS = ("task", "target", "start", "plant", "controller", "steady_tip_error_over_L", "settling_time_s",
+COLUMNS = ("task", "target", "start", "plant", "controller", "steady_tip_error_over_L",
+           "residual_oscillation_over_L", "settling_time_s",
            "overshoot_over_L", "peak_input", "tracking_rmse_over_L", "converged_fraction")
 
 
@@ -256,6 +257,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                              "start": start,
                              "plant": plant_name, "controller": name,
                              "steady_tip_error_over_L": metrics.steady_error(run, window) / L,
+                             "residual_oscillation_over_L": metrics.residual_oscillation(run, window) / L,
                              "settling_time_s": metrics.settling_time(run, band),
                              "overshoot_over_L": metrics.overshoot(run) / L,
                              "peak_input": metrics.peak_force(run),
@@ -265,7 +267,8 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
             runs[("tracking", plant_name, name, "rest")] = run
             rows.append({"task": "tracking", "target": f"circle r = {float(s['path_radius_m']):g} m at "
                          f"{float(s['path_frequency_hz']):g} Hz", "start": "rest", "plant": plant_name,
-                         "controller": name, "steady_tip_error_over_L": nan, "settling_time_s": nan,
+                         "controller": name, "steady_tip_error_over_L": nan,
+                         "residual_oscillation_over_L": nan, "settling_time_s": nan,
                          "overshoot_over_L": nan, "peak_input": metrics.peak_force(run),
                          "tracking_rmse_over_L": metrics.tracking_rmse(run, float(s["tracking_skip_s"])) / L,
                          "converged_fraction": nan})

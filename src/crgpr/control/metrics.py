@@ -13,8 +13,17 @@ def tip_error(run: ClosedLoop) -> np.ndarray:
 
 
 def steady_error(run: ClosedLoop, window_s: float) -> float:
-    """Mean tip position error [m] over the last ``window_s`` seconds."""
-    return float(tip_error(run)[run.t >= run.t[-1] - window_s].mean())
+    """Steady-state tip error [m]: the distance of the mean tip position over the last
+    ``window_s`` seconds from the target (the offset, with what still oscillates averaged out)."""
+    last = run.t >= run.t[-1] - window_s
+    return float(np.hypot(*(run.target[last, :2] - run.pose[last, :2]).mean(axis=0)))
+
+
+def residual_oscillation(run: ClosedLoop, window_s: float) -> float:
+    """RMS [m] of the tip position about its mean over the last ``window_s`` seconds."""
+    last = run.t >= run.t[-1] - window_s
+    d = run.pose[last, :2] - run.pose[last, :2].mean(axis=0)
+    return float(np.sqrt(np.mean((d**2).sum(axis=1))))
 
 
 def settling_time(run: ClosedLoop, band: float) -> float:
