@@ -91,3 +91,12 @@ def test_unreachable_targets_are_one_line_exit_2_nothing_written(models, tmp_pat
     err = capsys.readouterr().err.strip()
     assert words in err and "\n" not in err and "Traceback" not in err
     assert list(out.iterdir()) == []
+
+
+def test_a_point_and_a_path_together_are_refused(models, tmp_path, capsys):
+    path = pd.DataFrame({"t": [0.0, 1.0], "x": [0.25, 0.26], "y": [0.1, 0.1]})
+    path.to_csv(tmp_path / "p.csv", index=False)
+    assert main(["control", "--models", str(models), "--target-x", "0.25", "--target-y", "0.1", "--path",
+                 str(tmp_path / "p.csv"), "--out", str(tmp_path / "x.json"), "--config", str(SMOKE)]) == 2
+    assert "or --path" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()

@@ -148,8 +148,9 @@ def _cli(a: argparse.Namespace) -> None:
     cfg = load_config(cfg_path)
     if a.simulate and not a.out_trajectory:
         raise ConfigError("--simulate needs --out-trajectory")
-    if a.path is None and (a.target_x is None or a.target_y is None):
-        raise ConfigError("give --target-x and --target-y, or --path")
+    point = a.target_x is not None and a.target_y is not None
+    if (a.path is None) != point or (a.path and a.target_angle is not None):
+        raise ConfigError("give --target-x and --target-y (and optionally --target-angle), or --path")
     for name in ("target_x", "target_y", "target_angle"):
         v = getattr(a, name)
         if v is not None and not math.isfinite(v):
@@ -162,7 +163,8 @@ def _cli(a: argparse.Namespace) -> None:
     lo, hi = limits(cfg)
     P = model.params
     extra: dict[str, Any] = {"model_dir": str(a.models), "rod": P.to_dict(),
-                             "base_angle_deg": float(cfg["control"]["base_angle_deg"])}
+                             "base_angle_deg": float(cfg["control"]["base_angle_deg"]),
+                             "control_rate_hz": float(cfg["control"]["control_rate_hz"])}
     if path_df is None:
         target = (a.target_x, a.target_y, a.target_angle)
         eq = hold(model.internal, model.gu, model_q0, P.ds, target, solver(cfg), lo, hi)
