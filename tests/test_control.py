@@ -180,3 +180,10 @@ def test_targets_needing_more_input_than_the_limit_are_refused(smoke):
     lo, hi = np.full(3, -0.01), np.full(3, 0.01)
     with pytest.raises(UnreachableTarget, match="beyond the limit control.u_limits.tip_force"):
         hold(model.internal, model.gu, base_rod(cfg, P), P.ds, (0.25, 0.1, None), solver(cfg), lo, hi)
+
+
+def test_a_control_rate_off_the_time_grid_is_a_config_error():
+    from crgpr.config import ConfigError
+
+    with pytest.raises(ConfigError, match="control.control_rate_hz"):
+        load_config(SMOKE, {"control": {"control_rate_hz": 3000.0}})
