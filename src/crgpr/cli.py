@@ -19,6 +19,7 @@ COMMAND_MODULES: list[str] = [
     "crgpr.commands.discovery",
     "crgpr.commands.learn",
     "crgpr.commands.config_doc",
+    "crgpr.commands.control",
 ]
 
 

@@ -200,6 +200,14 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
         unknown = sorted({s for s in named if s not in sigs})
         if unknown:
             raise ConfigError(f"{source}: ports.study names {unknown}, not keys of ports.signals")
+    if "control" in cfg:
+        dt, ctl = float(cfg["simulation"]["dt_s"]), cfg["control"]
+        for step in (dt, dt * float(ctl["study"]["fine_dt_factor"])):
+            n = 1.0 / (float(ctl["control_rate_hz"]) * step)
+            if round(n) < 1 or abs(n - round(n)) > 1e-6:
+                raise ConfigError(f"{source}: control.control_rate_hz = {ctl['control_rate_hz']}: one sample "
+                                  f"must be a whole number of time steps ({step:g} s, simulation.dt_s and "
+                                  "control.study.fine_dt_factor)")
     if "uq" in cfg:
         from crgpr.uq.settings import UQSettings
 
