@@ -14,6 +14,7 @@ import pytest
 from paper_rod import paper_rod
 
 from crgpr.config import load_config
+from crgpr.discovery.describe import ProfileFit, describe_region, knot_positions, profile_params
 from crgpr.discovery.locate import local_stiffness_error, time_windows
 from crgpr.discovery.regression import Fit
 from crgpr.discovery.residual import Residual
@@ -336,3 +337,46 @@ def test_discretisation_floor_is_the_fitted_gap_and_ignores_spurious_initial_rat
         q0, v0 = rod_state(np.interp(g.s, pr.s, f_sp.theta), np.interp(g.s, pr.s, f_sp.omega), np.zeros(2), g)
         runs.append(run_model(g, q0, v0, period, n, step)[..., 2] @ marker_matrix(s_m, g).T)
     assert 4.0 / 3.0 * math.sqrt(np.mean((runs[0] - runs[1]) ** 2)) > 3.0 * est
+
+
+# --------------------------------------------------------------------------------------------
+# the learned bending-stiffness law (verdict "described")
+# --------------------------------------------------------------------------------------------
+def _profile_fit(logf: np.ndarray, sd: float) -> ProfileFit:
+    n = len(logf)
+    return ProfileFit(knot_positions(n), np.asarray(logf, float), sd**2 * np.eye(n), np.zeros(8),
+                      np.zeros((1, 2, 3)), 0.0, 1, 0)
+
+
+def test_described_region_is_the_place_direction_and_factor_of_a_soft_spot():
+    """A factor 0.5 at the knot s / L0 = 0.25 (band 0.05 in log f) is described as softer there,
+    within the neighbouring knots, with the factor and its band at the extreme, and an extra
+    compliance int (1/f - 1) ds inside its own band and below (1/0.5 - 1) x the two knot
+    intervals the soft spot spans."""
+    logf = np.zeros(9)
+    logf[2] = math.log(0.5)
+    reg = describe_region(_profile_fit(logf, 0.05), 0.5, 1.96)
+    assert reg["direction"] == "softer"
+    assert reg["s_extreme_m"] == pytest.approx(0.125)
+    assert 0.0625 <= reg["s_from_m"] < 0.125 < reg["s_to_m"] <= 0.1875
+    assert reg["factor"] == pytest.approx(0.5)
+    assert reg["band"][0] < 0.5 < reg["band"][1]
+    lo, hi = reg["extra_compliance_band_m"]
+    assert lo <= reg["extra_compliance_m"] <= hi
+    assert 0.0 < reg["extra_compliance_m"] < (1 / 0.5 - 1) * 0.125  # at most the knot interval
+
+
+def test_described_region_is_none_when_the_band_holds_the_nominal_law():
+    logf = np.full(9, 0.05)
+    assert describe_region(_profile_fit(logf, 0.1), 0.5, 1.96) is None
+    reg = describe_region(_profile_fit(logf, 0.01), 0.5, 1.96)  # a tight band: 5 % stiffer everywhere
+    assert reg["direction"] == "stiffer" and reg["s_from_m"] == 0.0 and reg["s_to_m"] == 0.5
+
+
+def test_profile_params_with_a_zero_log_factor_is_the_nominal_rod():
+    p = paper_rod()
+    q = profile_params(p, np.zeros(9))
+    s_rel = (np.arange(p.N) + 0.5) / p.N
+    assert np.allclose(q.material.ei_factor(s_rel), 1.0)
+    half = profile_params(p, np.full(5, math.log(0.5)))
+    assert np.allclose(half.material.ei_factor(s_rel), 0.5)
