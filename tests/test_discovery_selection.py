@@ -380,3 +380,61 @@ def test_profile_params_with_a_zero_log_factor_is_the_nominal_rod():
     assert np.allclose(q.material.ei_factor(s_rel), 1.0)
     half = profile_params(p, np.full(5, math.log(0.5)))
     assert np.allclose(half.material.ei_factor(s_rel), 0.5)
+
+
+# --------------------------------------------------------------------------------------------
+# held-out time blocks: no effect that the others make redundant out of sample
+# --------------------------------------------------------------------------------------------
+def _one_rod_record(truth: dict[str, float], noise_rad: float, seed: int = 3):
+    """A 1 s swing of a 10-segment rod with effects ``truth``, theta seen at 5 markers with
+    white noise ``noise_rad``; the fitter of the nominal rod on it."""
+    from crgpr.discovery.effects import effect_params
+    from crgpr.discovery.trajectory import TrajectoryFitter, rod_state, run_model
+    from crgpr.measured.kinematics import Kinematics
+
+    pr = paper_rod(N=10)
+    n, period = 201, 0.005
+    th = np.full(pr.N + 1, np.radians(85.0))
+    q0, v0 = rod_state(th, np.zeros(pr.N + 1), np.zeros(2), pr)
+    q = run_model(effect_params(pr, truth), q0, v0, period, n, 1e-4)
+    q[..., 2] += noise_rad * np.random.default_rng(seed).standard_normal(q[..., 2].shape)
+    t = np.arange(n) * period
+    vq = np.gradient(q, t, axis=0)
+    kin = Kinematics(t, q, vq, np.gradient(vq, t, axis=0), 1e-3, q[:, 0, 2].copy(),
+                     np.array([0.2, 0.4, 0.6, 0.8, 1.0]) * pr.L0)
+    return TrajectoryFitter(pr, kin, 1e-4, n_modes=2, window_s=0.05)
+
+
+@pytest.mark.parametrize("a", [0.1, 0.3])
+def test_holdout_drops_a_proxy_beside_the_one_hidden_effect(st, a):
+    """A uniform stiffness error of 10 % and 30 %: the model with a cubic stiffening beside it
+    fits in-sample at least as well, but on held-out time blocks the stiffening adds nothing,
+    and it leaves; the stiffness error stays, with its coefficient."""
+    from crgpr.discovery.holdout import holdout_check
+
+    fitter = _one_rod_record({"stiffness_scale": a}, 2e-3)
+    two = fitter.fit(["stiffness_scale", "nonlinear_stiffness"], np.array([a, 1e-3]), np.array([0.05, 1e-3]),
+                     st.refine_max_nfev)
+    out, rec = holdout_check(fitter, two, st)
+    assert out.names == ["stiffness_scale"]
+    assert out.coef[0] == pytest.approx(a, rel=0.1)
+    assert [r["effect"] for r in rec if r["dropped"]] == ["nonlinear_stiffness"]
+
+
+def test_holdout_keeps_two_hidden_effects(st):
+    """Both effects of a record with a stiffness error and a tip mass predict held-out blocks."""
+    from crgpr.discovery.holdout import holdout_check
+
+    fitter = _one_rod_record({"stiffness_scale": 0.3, "tip_mass": 0.005}, 2e-3)
+    two = fitter.fit(["stiffness_scale", "tip_mass"], np.array([0.3, 0.005]), np.array([0.05, 1e-3]),
+                     st.refine_max_nfev)
+    out, rec = holdout_check(fitter, two, st)
+    assert out.names == ["stiffness_scale", "tip_mass"]
+    assert all(r["held_out_evidence"] >= st.holdout_min_evidence for r in rec)
+
+
+def test_block_mask_alternates_equal_blocks_from_the_first():
+    from crgpr.discovery.holdout import block_mask
+
+    m = block_mask(12, 6)
+    assert m.tolist() == [1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0]

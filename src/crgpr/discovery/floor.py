@@ -92,8 +92,10 @@ def model_form_error(fitter: TrajectoryFitter, dt_max: float, clamp_m: float, cl
     ``clamp_m`` ``clamp_factor`` times stiffer (a clamp of finite length, which a user's rig, or
     another simulator's rigid first element, has and the model's point clamp does not; through
     ``rod.material``'s defect law, on whole segments of the 2N grid); the RMS difference of the
-    two fitted trajectories at the markers. Our own N -> 2N refinement alone cannot show it:
-    both grids share the point clamp."""
+    two fitted trajectories at the markers (0 for ``clamp_factor`` 1). Our own N -> 2N
+    refinement alone cannot show it: both grids share the point clamp."""
+    if clamp_factor == 1.0:  # no other clamp form: no model-form part
+        return 0.0
     c0 = np.zeros(2 * fitter.n_modes) if c0 is None else np.asarray(c0, float)
     s = fitter.params.s
     deg = min(degree, fitter.params.N - 1)
