@@ -438,3 +438,44 @@ def test_block_mask_alternates_equal_blocks_from_the_first():
 
     m = block_mask(12, 6)
     assert m.tolist() == [1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0]
+
+
+def test_model_form_floor_is_zero_for_the_point_clamp_and_grows_with_the_clamp_stiffness():
+    """The clamp's model-form part of the floor: none with ``clamp_factor`` 1 (the model's own
+    point clamp), positive and larger for a stiffer clamp of the same length."""
+    from crgpr.discovery.floor import model_form_error
+
+    fitter = _one_rod_record({}, 0.0)
+    assert model_form_error(fitter, 1e-4, 0.05, 1.0) == 0.0
+    e3, e10 = (model_form_error(fitter, 1e-4, 0.05, f) for f in (3.0, 10.0))
+    assert 0.0 < e3 < e10
+
+
+def test_summary_counts_a_described_defect_by_its_place_and_direction(tmp_path):
+    """A stiffness defect is expected `described`; it is correct only if the described region
+    holds the defect's centre and is softer."""
+    import json
+
+    from crgpr.report.discovery import summary
+
+    where = {"residual_moment_peak_s_m": 0.1, "time_window_s": [0.0, 0.1]}
+    inp = {"n_markers": 26, "t0_s": 0.0, "missing_fraction": [0.0], "outliers_total": 0}
+    base = {"verdict": "described", "input": inp, "gap_before": 0.03, "gap_floor": 0.015, "gap_after": 0.012,
+            "tip_gap_before": 0.1, "tip_gap_after": 0.01, "explained_fraction": 0.6, "where": where,
+            "timing_s": {"total": 1.0}, "effects": [], "indistinguishable_alternatives": []}
+    truth = {"effects": {}, "disturbance": {"stiffness_defect": {"s_m": 0.15, "width_m": 0.06, "depth": 0.6}},
+             "effect_size_rmse_theta_rad": 0.08}
+    region = {"direction": "softer", "s_from_m": 0.09, "s_to_m": 0.21, "factor": 0.59, "band": [0.48, 0.72]}
+    cases = {"right": region, "wrong_place": {**region, "s_from_m": 0.3, "s_to_m": 0.4},
+             "wrong_direction": {**region, "direction": "stiffer"}}
+    tps, rps = [], []
+    for name, reg in cases.items():
+        tp, rp = tmp_path / f"{name}_t.json", tmp_path / f"{name}_r.json"
+        tp.write_text(json.dumps(truth))
+        rp.write_text(json.dumps({**base, "described": {"region": reg}}))
+        tps.append(tp)
+        rps.append(rp)
+    df = summary(list(cases), tps, rps, 0.02, tmp_path / "d.csv", tmp_path / "d.png").set_index("case")
+    assert df["expected_verdict"].eq("described").all()
+    assert df["correct"].tolist() == [True, False, False]
+    assert df.loc["right", "described"].startswith("EI x0.59")
