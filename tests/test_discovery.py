@@ -494,6 +494,18 @@ def test_localized_stiffness_defect_is_described_on_the_configs_record(record_ru
     assert loc["peak_z"] >= 4.0
 
 
+def test_finer_simulator_with_another_clamp_and_nothing_hidden_gives_none_on_the_configs_record(record_runs):
+    """A 4x finer simulator whose first 5 mm are clamped twice as stiff, nothing hidden, 7 markers:
+    the gap is over the floor by more than min_gap_rad, no effect is named, and the learned
+    EI(s) change sits next to the clamp (within clamp_form_m): the clamp's form, verdict none.
+    A real effect of that size is still named (the stiffness_scale case)."""
+    truth, res = record_runs("none_fine_clamp")
+    assert truth["effects"] == {} and truth["model_form"]
+    assert res["verdict"] == "none" and res["effects"] == []
+    assert res["described"]["clamp_form"]
+    assert res["described"]["region"]["s_from_m"] == 0.0
+
+
 def test_out_of_library_force_is_not_described_as_a_stiffness_on_the_configs_record(record_runs):
     """A periodic tip force is no stiffness law: the learned EI(s) does not close its gap, and
     the verdict stays `unexplained`."""

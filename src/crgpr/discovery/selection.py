@@ -302,9 +302,16 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         # no named effect closes the gap: learn the bending stiffness along s instead
         described = describe(fitter, nominal, floor, nominal.tau, gap_before, excess, st)
         q_desc = described.pop("_q")
-        verdict = "described" if described["accepted"] else "unexplained"
-        if described["accepted"]:
-            q_aug = q_desc
+        # a change confined to the clamp's neighbourhood is the clamp's form (a clamp of finite
+        # length; another simulator's clamp model), not a missing effect
+        region = described["region"]
+        described["clamp_form"] = bool(described["accepted"] and region["s_to_m"] <= st.clamp_form_m)
+        if described["clamp_form"]:
+            verdict = "none"
+        elif described["accepted"]:
+            verdict, q_aug = "described", q_desc
+        else:
+            verdict = "unexplained"
     gap_after = theta_rmse(q_aug, kin.q, M)
     result.update({
         "effects": effects, "verdict": verdict, "gap_after": gap_after,

@@ -26,6 +26,7 @@ class DiscoverySettings:
     gp_max_points: int
     bootstrap_replicates: int
     floor_clamp_m: float
+    clamp_form_m: float
     floor_clamp_factor: float
     holdout_blocks: int
     holdout_min_evidence: float
@@ -52,7 +53,8 @@ class DiscoverySettings:
                    max_effects=int(d["max_effects"]), bic_min_improvement=float(d["bic_min_improvement"]),
                    refine_max_nfev=int(d["refine_max_nfev"]), gp_max_points=int(d["gp_max_points"]),
                    bootstrap_replicates=int(d["bootstrap_replicates"]),
-                   floor_clamp_m=float(d["floor_clamp_m"]), floor_clamp_factor=float(d["floor_clamp_factor"]),
+                   floor_clamp_m=float(d["floor_clamp_m"]), clamp_form_m=float(d["clamp_form_m"]),
+                   floor_clamp_factor=float(d["floor_clamp_factor"]),
                    holdout_blocks=int(d["holdout_blocks"]),
                    holdout_min_evidence=float(d["holdout_min_evidence"]),
                    describe_knots=int(d["describe_knots"]), describe_prior_std=float(d["describe_prior_std"]),

@@ -153,6 +153,9 @@ def report_markdown(result: dict[str, Any], files: list[str]) -> str:
         lines += ["", "## Learned law (no named effect closes the gap)", ""]
         if d["summary"]:
             lines.append(f"{'Described' if d['accepted'] else 'Not accepted'}: {d['summary']}.")
+        if d.get("clamp_form"):
+            lines.append("The change is confined to the clamp's neighbourhood (discovery.clamp_form_m): "
+                         "the clamp's form, not a missing effect; verdict none.")
         else:
             lines.append("The learned bending-stiffness factor's band contains the nominal law everywhere.")
         lines.append(f"Learned EI(s) f(s) through {len(d['knots_s_m'])} knots: closes "
