@@ -45,7 +45,8 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    over the floor above ``max(min_gap_rad, max_remaining * excess)``; else ``none`` if the
    nominal gap's excess over the floor is below ``min_gap_rad``; else ``described`` if a learned
    bending-stiffness profile EI(s) f(s) (``crgpr.discovery.describe``) closes the gap by the
-   same rule, with its band away from the nominal law somewhere; otherwise ``unexplained``
+   same rule, with its band away from the nominal law somewhere (``none`` if that change is
+   confined to ``clamp_form_m`` next to the clamp: the clamp's form); otherwise ``unexplained``
    (no name is forced: a global effect that absorbs part of a disturbance it does not
    describe is reported as a partial attempt, with where the disturbance sits).
 
