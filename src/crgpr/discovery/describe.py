@@ -170,12 +170,16 @@ def describe_region(pf: ProfileFit, L0: float, z: float, n_eval: int = 201) -> d
 
 
 def describe(fitter: TrajectoryFitter, base: TrajectoryFit, floor: float, tau: float, gap_before: float,
-             excess: float, st: Any) -> dict[str, Any]:
+             excess: float, st: Any, rivals: tuple[tuple[list[str], float], ...] = ()) -> dict[str, Any]:
     """The learned EI(s) law of a record no named effect explains, and whether it describes the
     gap (``accepted``): its trajectory BIC gain >= ``bic_min_improvement`` (sample deflated by
-    ``tau``, one parameter per knot), its band excludes the nominal law somewhere, it closes at
-    least ``min_explained`` of the excess over the floor and leaves at most
-    ``max(min_gap_rad, max_remaining * excess)``."""
+    ``tau``, one parameter per knot) over the nominal model and over every library model tried
+    (``rivals``: effect names and theta RMSE of their trajectory fits; a library effect that
+    fits nearly as well with fewer parameters was rejected for its own reasons, and the learned
+    law must not stand in for it: a 9-knot stiffness profile can mimic a tip mass), its band
+    excludes the nominal law somewhere, it closes at least ``min_explained`` of the excess over
+    the floor and leaves at most ``max(min_gap_rad, max_remaining * excess)`` (these but the
+    library test: ``closes_the_gap``)."""
     sigma = max(floor, 1e-6) * math.sqrt(max(tau, 1.0))
     pf = fit_profile(fitter, base, sigma, st.describe_knots, st.describe_prior_std, st.describe_length_scale,
                      st.describe_iterations)
@@ -183,10 +187,17 @@ def describe(fitter: TrajectoryFitter, base: TrajectoryFit, floor: float, tau: f
     region = describe_region(pf, L0, st.describe_band_z)
     n_eff = pf.n / max(tau, 1.0)
     dbic = n_eff * math.log(max(base.rss, 1e-300) / max(pf.rss, 1e-300)) - len(pf.logf) * math.log(n_eff)
+    k = len(pf.logf)
+    rival_bic = [{"effects": list(names), "rmse": rmse,
+                  "delta_bic": n_eff * math.log(max(rmse**2, 1e-300) / max(pf.rss / pf.n, 1e-300))
+                  - (k - len(names)) * math.log(n_eff)} for names, rmse in rivals]
+    closest = min(rival_bic, key=lambda r: r["delta_bic"]) if rival_bic else None
     remaining = math.sqrt(max(pf.rmse**2 - floor**2, 0.0))
     closed = 1.0 - remaining / excess if excess > 0 else 0.0
-    accepted = bool(region is not None and dbic >= st.bic_min_improvement and closed >= st.min_explained
-                    and remaining <= max(st.min_gap_rad, st.max_remaining * excess))
+    beats_library = closest is None or closest["delta_bic"] >= st.bic_min_improvement
+    fits = bool(region is not None and dbic >= st.bic_min_improvement and closed >= st.min_explained
+                and remaining <= max(st.min_gap_rad, st.max_remaining * excess))
+    accepted = fits and beats_library
     s = np.linspace(0.0, 1.0, 101)
     f, lo, hi = pf.band(s, st.describe_band_z)
     sentence = None
@@ -196,11 +207,12 @@ def describe(fitter: TrajectoryFitter, base: TrajectoryFit, floor: float, tau: f
                     f"{region['s_extreme_m']:.2f} m; {st.describe_band_z:g}-std band "
                     f"{region['band'][0]:.2g}-{region['band'][1]:.2g}x); gap {gap_before:.4f} -> "
                     f"{pf.rmse:.4f} rad (floor {floor:.4f})")
-    return {"accepted": accepted, "law": "EI(s) f(s), f piecewise linear in s / L0",
+    return {"accepted": accepted, "closes_the_gap": fits, "law": "EI(s) f(s), f piecewise linear in s / L0",
             "knots_s_m": (pf.knots * L0).tolist(), "factor_at_knots": np.exp(pf.logf).tolist(),
             "log_factor_std": np.sqrt(np.maximum(np.diag(pf.cov), 0.0)).tolist(),
             "band_z": st.describe_band_z, "curve": {"s_m": (s * L0).tolist(), "factor": f.tolist(),
                                                     "lower": lo.tolist(), "upper": hi.tolist()},
             "region": region, "summary": sentence, "gap_after": pf.rmse, "remaining_excess": remaining,
             "explained_excess_fraction": closed, "trajectory_delta_bic": dbic,
+            "closest_library_model": closest, "beats_library": beats_library,
             "iterations": pf.iterations, "_q": pf.q}

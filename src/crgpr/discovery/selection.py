@@ -301,12 +301,15 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         verdict = "none"
     else:
         # no named effect closes the gap: learn the bending stiffness along s instead
-        described = describe(fitter, nominal, floor, nominal.tau, gap_before, excess, st)
+        rivals = tuple((step["model"] + [c["effect"]], c["rmse"])
+                       for step in steps for c in step["confirmation"])
+        described = describe(fitter, nominal, floor, nominal.tau, gap_before, excess, st, rivals)
         q_desc = described.pop("_q")
         # a change confined to the clamp's neighbourhood is the clamp's form (a clamp of finite
-        # length; another simulator's clamp model), not a missing effect
+        # length; another simulator's clamp model), not a missing effect, even where a library
+        # effect rejected by its own tests fits about as well
         region = described["region"]
-        described["clamp_form"] = bool(described["accepted"] and region["s_to_m"] <= st.clamp_form_m)
+        described["clamp_form"] = bool(described["closes_the_gap"] and region["s_to_m"] <= st.clamp_form_m)
         if described["clamp_form"]:
             verdict = "none"
         elif described["accepted"]:

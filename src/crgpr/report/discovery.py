@@ -153,6 +153,10 @@ def report_markdown(result: dict[str, Any], files: list[str]) -> str:
         lines += ["", "## Learned law (no named effect closes the gap)", ""]
         if d["summary"]:
             lines.append(f"{'Described' if d['accepted'] else 'Not accepted'}: {d['summary']}.")
+        c = d.get("closest_library_model")
+        if c:
+            lines.append(f"Closest library model: {', '.join(c['effects'])} (RMSE {c['rmse']:.4f} rad; the "
+                         f"learned law's BIC is lower by {c['delta_bic']:.1f}).")
         if d.get("clamp_form"):
             lines.append("The change is confined to the clamp's neighbourhood (discovery.clamp_form_m): "
                          "the clamp's form, not a missing effect; verdict none.")
