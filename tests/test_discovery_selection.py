@@ -385,9 +385,12 @@ def test_profile_params_with_a_zero_log_factor_is_the_nominal_rod():
 # --------------------------------------------------------------------------------------------
 # held-out time blocks: no effect that the others make redundant out of sample
 # --------------------------------------------------------------------------------------------
-def _one_rod_record(truth: dict[str, float], noise_rad: float, seed: int = 3):
-    """A 1 s swing of a 10-segment rod with effects ``truth``, theta seen at 5 markers with
-    white noise ``noise_rad``; the fitter of the nominal rod on it."""
+def _one_rod_record(truth: dict[str, float], noise_rad: float, seed: int = 3, material: dict | None = None):
+    """A 1 s swing of a 10-segment rod with effects ``truth`` (and ``rod.material`` changes
+    ``material``), theta seen at 5 markers with white noise ``noise_rad``; the fitter of the
+    nominal rod on it."""
+    import dataclasses
+
     from crgpr.discovery.effects import effect_params
     from crgpr.discovery.trajectory import TrajectoryFitter, rod_state, run_model
     from crgpr.measured.kinematics import Kinematics
@@ -396,7 +399,10 @@ def _one_rod_record(truth: dict[str, float], noise_rad: float, seed: int = 3):
     n, period = 201, 0.005
     th = np.full(pr.N + 1, np.radians(85.0))
     q0, v0 = rod_state(th, np.zeros(pr.N + 1), np.zeros(2), pr)
-    q = run_model(effect_params(pr, truth), q0, v0, period, n, 1e-4)
+    p_truth = effect_params(pr, truth)
+    if material:
+        p_truth = p_truth.replace(material=dataclasses.replace(p_truth.material, **material))
+    q = run_model(p_truth, q0, v0, period, n, 1e-4)
     q[..., 2] += noise_rad * np.random.default_rng(seed).standard_normal(q[..., 2].shape)
     t = np.arange(n) * period
     vq = np.gradient(q, t, axis=0)
@@ -479,3 +485,29 @@ def test_summary_counts_a_described_defect_by_its_place_and_direction(tmp_path):
     assert df["expected_verdict"].eq("described").all()
     assert df["correct"].tolist() == [True, False, False]
     assert df.loc["right", "described"].startswith("EI x0.59")
+
+
+@pytest.mark.parametrize("truth, material, accepted", [
+    ({"tip_mass": 0.003}, None, False),
+    ({}, {"defect_start": 0.3, "defect_end": 0.5, "defect_factor": 0.4, "defect_edge": 0.02}, True),
+])
+def test_learned_law_does_not_stand_in_for_a_library_effect(st, truth, material, accepted):
+    """A tip mass hidden: the learned EI(s) (nine knots) may close the gap, but the library's
+    one-parameter tip-mass fit does about as well, so the law is not accepted, and the tip mass
+    is reported as the closest library model. A soft spot (EI x 0.4 over 0.3-0.5 L0): the law
+    beats the same rival and is accepted, softer where the spot is."""
+    from crgpr.discovery.describe import describe
+
+    fitter = _one_rod_record(truth, 2e-3, material=material)
+    nominal = fitter.fit([], np.zeros(0), np.zeros(0), st.refine_max_nfev)
+    tm = fitter.fit(["tip_mass"], np.array([0.002]), np.array([1e-3]), st.refine_max_nfev)
+    floor = 2e-3
+    excess = math.sqrt(max(nominal.rmse**2 - floor**2, 0.0))
+    out = describe(fitter, nominal, floor, nominal.tau, nominal.rmse, excess, st, ((["tip_mass"], tm.rmse),))
+    assert out["closest_library_model"]["effects"] == ["tip_mass"]
+    assert out["closes_the_gap"]  # on its own the law would describe both records
+    assert out["accepted"] is accepted
+    if accepted:
+        reg = out["region"]
+        assert reg["direction"] == "softer"
+        assert reg["s_from_m"] <= 0.4 * fitter.params.L0 <= reg["s_to_m"]
