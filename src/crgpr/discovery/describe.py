@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from crgpr.discovery.settings import DiscoverySettings
 from crgpr.discovery.trajectory import TrajectoryFit, TrajectoryFitter
 from crgpr.gp import kernel_matrix
 from crgpr.physics.params import RodParams
@@ -170,7 +171,8 @@ def describe_region(pf: ProfileFit, L0: float, z: float, n_eval: int = 201) -> d
 
 
 def describe(fitter: TrajectoryFitter, base: TrajectoryFit, floor: float, tau: float, gap_before: float,
-             excess: float, st: Any, rivals: tuple[tuple[list[str], float], ...] = ()) -> dict[str, Any]:
+             excess: float, st: DiscoverySettings, rivals: tuple[tuple[list[str], float], ...] = ()
+             ) -> dict[str, Any]:
     """The learned EI(s) law of a record no named effect explains, and whether it describes the
     gap (``accepted``): its trajectory BIC gain >= ``bic_min_improvement`` (sample deflated by
     ``tau``, one parameter per knot) over the nominal model and over every library model tried
