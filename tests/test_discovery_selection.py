@@ -14,6 +14,7 @@ import pytest
 from paper_rod import paper_rod
 
 from crgpr.config import load_config
+from crgpr.discovery.describe import ProfileFit, describe_region, knot_positions, profile_params
 from crgpr.discovery.locate import local_stiffness_error, time_windows
 from crgpr.discovery.regression import Fit
 from crgpr.discovery.residual import Residual
@@ -336,3 +337,177 @@ def test_discretisation_floor_is_the_fitted_gap_and_ignores_spurious_initial_rat
         q0, v0 = rod_state(np.interp(g.s, pr.s, f_sp.theta), np.interp(g.s, pr.s, f_sp.omega), np.zeros(2), g)
         runs.append(run_model(g, q0, v0, period, n, step)[..., 2] @ marker_matrix(s_m, g).T)
     assert 4.0 / 3.0 * math.sqrt(np.mean((runs[0] - runs[1]) ** 2)) > 3.0 * est
+
+
+# --------------------------------------------------------------------------------------------
+# the learned bending-stiffness law (verdict "described")
+# --------------------------------------------------------------------------------------------
+def _profile_fit(logf: np.ndarray, sd: float) -> ProfileFit:
+    n = len(logf)
+    return ProfileFit(knot_positions(n), np.asarray(logf, float), sd**2 * np.eye(n), np.zeros(8),
+                      np.zeros((1, 2, 3)), 0.0, 1, 0)
+
+
+def test_described_region_is_the_place_direction_and_factor_of_a_soft_spot():
+    """A factor 0.5 at the knot s / L0 = 0.25 (band 0.05 in log f) is described as softer there,
+    within the neighbouring knots, with the factor and its band at the extreme, and an extra
+    compliance int (1/f - 1) ds inside its own band and below (1/0.5 - 1) x the two knot
+    intervals the soft spot spans."""
+    logf = np.zeros(9)
+    logf[2] = math.log(0.5)
+    reg = describe_region(_profile_fit(logf, 0.05), 0.5, 1.96)
+    assert reg["direction"] == "softer"
+    assert reg["s_extreme_m"] == pytest.approx(0.125)
+    assert 0.0625 <= reg["s_from_m"] < 0.125 < reg["s_to_m"] <= 0.1875
+    assert reg["factor"] == pytest.approx(0.5)
+    assert reg["band"][0] < 0.5 < reg["band"][1]
+    lo, hi = reg["extra_compliance_band_m"]
+    assert lo <= reg["extra_compliance_m"] <= hi
+    assert 0.0 < reg["extra_compliance_m"] < (1 / 0.5 - 1) * 0.125  # at most the knot interval
+
+
+def test_described_region_is_none_when_the_band_holds_the_nominal_law():
+    logf = np.full(9, 0.05)
+    assert describe_region(_profile_fit(logf, 0.1), 0.5, 1.96) is None
+    reg = describe_region(_profile_fit(logf, 0.01), 0.5, 1.96)  # a tight band: 5 % stiffer everywhere
+    assert reg["direction"] == "stiffer" and reg["s_from_m"] == 0.0 and reg["s_to_m"] == 0.5
+
+
+def test_profile_params_with_a_zero_log_factor_is_the_nominal_rod():
+    p = paper_rod()
+    q = profile_params(p, np.zeros(9))
+    s_rel = (np.arange(p.N) + 0.5) / p.N
+    assert np.allclose(q.material.ei_factor(s_rel), 1.0)
+    half = profile_params(p, np.full(5, math.log(0.5)))
+    assert np.allclose(half.material.ei_factor(s_rel), 0.5)
+
+
+# --------------------------------------------------------------------------------------------
+# held-out time blocks: no effect that the others make redundant out of sample
+# --------------------------------------------------------------------------------------------
+def _one_rod_record(truth: dict[str, float], noise_rad: float, seed: int = 3, material: dict | None = None):
+    """A 1 s swing of a 10-segment rod with effects ``truth`` (and ``rod.material`` changes
+    ``material``), theta seen at 5 markers with white noise ``noise_rad``; the fitter of the
+    nominal rod on it."""
+    import dataclasses
+
+    from crgpr.discovery.effects import effect_params
+    from crgpr.discovery.trajectory import TrajectoryFitter, rod_state, run_model
+    from crgpr.measured.kinematics import Kinematics
+
+    pr = paper_rod(N=10)
+    n, period = 201, 0.005
+    th = np.full(pr.N + 1, np.radians(85.0))
+    q0, v0 = rod_state(th, np.zeros(pr.N + 1), np.zeros(2), pr)
+    p_truth = effect_params(pr, truth)
+    if material:
+        p_truth = p_truth.replace(material=dataclasses.replace(p_truth.material, **material))
+    q = run_model(p_truth, q0, v0, period, n, 1e-4)
+    q[..., 2] += noise_rad * np.random.default_rng(seed).standard_normal(q[..., 2].shape)
+    t = np.arange(n) * period
+    vq = np.gradient(q, t, axis=0)
+    kin = Kinematics(t, q, vq, np.gradient(vq, t, axis=0), 1e-3, q[:, 0, 2].copy(),
+                     np.array([0.2, 0.4, 0.6, 0.8, 1.0]) * pr.L0)
+    return TrajectoryFitter(pr, kin, 1e-4, n_modes=2, window_s=0.05)
+
+
+@pytest.mark.parametrize("a", [0.1, 0.3])
+def test_holdout_drops_a_proxy_beside_the_one_hidden_effect(st, a):
+    """A uniform stiffness error of 10 % and 30 %: the model with a cubic stiffening beside it
+    fits in-sample at least as well, but on held-out time blocks the stiffening adds nothing,
+    and it leaves; the stiffness error stays, with its coefficient."""
+    from crgpr.discovery.holdout import holdout_check
+
+    fitter = _one_rod_record({"stiffness_scale": a}, 2e-3)
+    two = fitter.fit(["stiffness_scale", "nonlinear_stiffness"], np.array([a, 1e-3]), np.array([0.05, 1e-3]),
+                     st.refine_max_nfev)
+    out, rec = holdout_check(fitter, two, st)
+    assert out.names == ["stiffness_scale"]
+    assert out.coef[0] == pytest.approx(a, rel=0.1)
+    assert [r["effect"] for r in rec if r["dropped"]] == ["nonlinear_stiffness"]
+
+
+def test_holdout_keeps_two_hidden_effects(st):
+    """Both effects of a record with a stiffness error and a tip mass predict held-out blocks."""
+    from crgpr.discovery.holdout import holdout_check
+
+    fitter = _one_rod_record({"stiffness_scale": 0.3, "tip_mass": 0.005}, 2e-3)
+    two = fitter.fit(["stiffness_scale", "tip_mass"], np.array([0.3, 0.005]), np.array([0.05, 1e-3]),
+                     st.refine_max_nfev)
+    out, rec = holdout_check(fitter, two, st)
+    assert out.names == ["stiffness_scale", "tip_mass"]
+    assert all(r["held_out_evidence"] >= st.holdout_min_evidence for r in rec)
+
+
+def test_block_mask_alternates_equal_blocks_from_the_first():
+    from crgpr.discovery.holdout import block_mask
+
+    m = block_mask(12, 6)
+    assert m.tolist() == [1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0]
+
+
+def test_model_form_floor_is_zero_for_the_point_clamp_and_grows_with_the_clamp_stiffness():
+    """The clamp's model-form part of the floor: none with ``clamp_factor`` 1 (the model's own
+    point clamp), positive and larger for a stiffer clamp of the same length."""
+    from crgpr.discovery.floor import model_form_error
+
+    fitter = _one_rod_record({}, 0.0)
+    assert model_form_error(fitter, 1e-4, 0.05, 1.0) == 0.0
+    e3, e10 = (model_form_error(fitter, 1e-4, 0.05, f) for f in (3.0, 10.0))
+    assert 0.0 < e3 < e10
+
+
+def test_summary_counts_a_described_defect_by_its_place_and_direction(tmp_path):
+    """A stiffness defect is expected `described`; it is correct only if the described region
+    holds the defect's centre and is softer."""
+    import json
+
+    from crgpr.report.discovery import summary
+
+    where = {"residual_moment_peak_s_m": 0.1, "time_window_s": [0.0, 0.1]}
+    inp = {"n_markers": 26, "t0_s": 0.0, "missing_fraction": [0.0], "outliers_total": 0}
+    base = {"verdict": "described", "input": inp, "gap_before": 0.03, "gap_floor": 0.015, "gap_after": 0.012,
+            "tip_gap_before": 0.1, "tip_gap_after": 0.01, "explained_fraction": 0.6, "where": where,
+            "timing_s": {"total": 1.0}, "effects": [], "indistinguishable_alternatives": []}
+    truth = {"effects": {}, "disturbance": {"stiffness_defect": {"s_m": 0.15, "width_m": 0.06, "depth": 0.6}},
+             "effect_size_rmse_theta_rad": 0.08}
+    region = {"direction": "softer", "s_from_m": 0.09, "s_to_m": 0.21, "factor": 0.59, "band": [0.48, 0.72]}
+    cases = {"right": region, "wrong_place": {**region, "s_from_m": 0.3, "s_to_m": 0.4},
+             "wrong_direction": {**region, "direction": "stiffer"}}
+    tps, rps = [], []
+    for name, reg in cases.items():
+        tp, rp = tmp_path / f"{name}_t.json", tmp_path / f"{name}_r.json"
+        tp.write_text(json.dumps(truth))
+        rp.write_text(json.dumps({**base, "described": {"region": reg}}))
+        tps.append(tp)
+        rps.append(rp)
+    df = summary(list(cases), tps, rps, 0.02, tmp_path / "d.csv", tmp_path / "d.png").set_index("case")
+    assert df["expected_verdict"].eq("described").all()
+    assert df["correct"].tolist() == [True, False, False]
+    assert df.loc["right", "described"].startswith("EI x0.59")
+
+
+@pytest.mark.parametrize("truth, material, accepted", [
+    ({"tip_mass": 0.003}, None, False),
+    ({}, {"defect_start": 0.3, "defect_end": 0.5, "defect_factor": 0.4, "defect_edge": 0.02}, True),
+])
+def test_learned_law_does_not_stand_in_for_a_library_effect(st, truth, material, accepted):
+    """A tip mass hidden: the learned EI(s) (nine knots) may close the gap, but the library's
+    one-parameter tip-mass fit does about as well, so the law is not accepted, and the tip mass
+    is reported as the closest library model. A soft spot (EI x 0.4 over 0.3-0.5 L0): the law
+    beats the same rival and is accepted, softer where the spot is."""
+    from crgpr.discovery.describe import describe
+
+    fitter = _one_rod_record(truth, 2e-3, material=material)
+    nominal = fitter.fit([], np.zeros(0), np.zeros(0), st.refine_max_nfev)
+    tm = fitter.fit(["tip_mass"], np.array([0.002]), np.array([1e-3]), st.refine_max_nfev)
+    floor = 2e-3
+    excess = math.sqrt(max(nominal.rmse**2 - floor**2, 0.0))
+    out = describe(fitter, nominal, floor, nominal.tau, nominal.rmse, excess, st, ((["tip_mass"], tm.rmse),))
+    assert out["closest_library_model"]["effects"] == ["tip_mass"]
+    assert out["closes_the_gap"]  # on its own the law would describe both records
+    assert out["accepted"] is accepted
+    if accepted:
+        reg = out["region"]
+        assert reg["direction"] == "softer"
+        assert reg["s_from_m"] <= 0.4 * fitter.params.L0 <= reg["s_to_m"]

@@ -9,7 +9,8 @@ DISCOVERY_RUN_KEYS = [
     "min_rate_hz", "min_samples", "outlier_k", "outlier_min_m", "geometry_tol", "edge_trim_s",
     "init_window_s", "init_modes", "window_s", "min_gap_rad", "min_explained", "max_remaining",
     "min_effect_fraction", "max_confirm", "max_effects", "bic_min_improvement", "refine_max_nfev",
-    "gp_max_points", "bootstrap_replicates",
+    "gp_max_points", "bootstrap_replicates", "floor_clamp_m", "clamp_form_m", "floor_clamp_factor", "holdout_blocks", "holdout_min_evidence", "describe_knots", "describe_prior_std", "describe_length_scale",
+    "describe_iterations", "describe_band_z",
 ]
 
 

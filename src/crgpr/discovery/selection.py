@@ -16,8 +16,9 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    data are) and the model's own
    discretisation error (the model fitted to the data on its grid and time step and on a
    grid twice as fine with half the step, each with its own initial state; the difference
-   of the two fitted trajectories, Richardson-scaled by 4/3 for a second-order scheme), added
-   in quadrature.
+   of the two fitted trajectories, Richardson-scaled by 4/3 for a second-order scheme) and a
+   model-form difference another rig or simulator can have (``floor.model_form_error``: the
+   fit with a clamp of finite length against the point clamp), added in quadrature.
 3. Name. The cut-moment residual of the data against the current model
    (``crgpr.discovery.residual``) is regressed on every candidate's signature; candidates enter
    by forward stepwise selection with the Bayesian information criterion of a heteroscedastic
@@ -36,11 +37,16 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    A model within ``min_gap_rad`` of its floor is "hidden" (``entry_threshold``): its fitted
    initial state may mimic an effect on a short record, so the search goes on with the
    candidates the initial-state-free cut-moment residual shows, each of which must be large
-   enough to have put the gap over the "none" threshold by itself.
+   enough to have put the gap over the "none" threshold by itself. A model of two or more
+   effects then passes a leave-one-effect-out test on held-out time blocks
+   (``crgpr.discovery.holdout``): an effect the others make redundant out of sample leaves.
 4. Verdict. ``effect_found`` if effects were named that close at least ``min_explained`` of
    the gap (of its excess over the floor when the nominal gap was hidden) AND leave no excess
    over the floor above ``max(min_gap_rad, max_remaining * excess)``; else ``none`` if the
-   nominal gap's excess over the floor is below ``min_gap_rad``; otherwise ``unexplained``
+   nominal gap's excess over the floor is below ``min_gap_rad``; else ``described`` if a learned
+   bending-stiffness profile EI(s) f(s) (``crgpr.discovery.describe``) closes the gap by the
+   same rule, with its band away from the nominal law somewhere (``none`` if that change is
+   confined to ``clamp_form_m`` next to the clamp: the clamp's form); otherwise ``unexplained``
    (no name is forced: a global effect that absorbs part of a disturbance it does not
    describe is reported as a partial attempt, with where the disturbance sits).
 
@@ -57,8 +63,10 @@ from typing import Any
 
 import numpy as np
 
+from crgpr.discovery.describe import describe
 from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS
-from crgpr.discovery.floor import discretisation_error, noise_floor
+from crgpr.discovery.floor import discretisation_error, model_form_error, noise_floor
+from crgpr.discovery.holdout import holdout_check
 from crgpr.discovery.locate import locate
 from crgpr.discovery.regression import Fit, Regression
 from crgpr.discovery.residual import residual
@@ -110,15 +118,16 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
     tip_before = tip_rmse_over_L(q_nom, kin.q, s_last, params)
     f_noise = noise_floor(q_nom, meas, kin, params, dt_max, st)
     f_disc = discretisation_error(fitter, dt_max, c0=nominal.init)
-    floor = math.hypot(f_noise, f_disc)
+    f_form = model_form_error(fitter, dt_max, st.floor_clamp_m, st.floor_clamp_factor, c0=nominal.init)
+    floor = math.sqrt(f_noise**2 + f_disc**2 + f_form**2)
     floors: dict[tuple[str, ...], float] = {(): floor}  # by names and coefficients
 
     def floor_of(fit: TrajectoryFit) -> float:
-        """Floor of a named model: the same noise part, its own discretisation error."""
+        """Floor of a named model: the same noise and model-form parts, its own discretisation error."""
         key = tuple(fit.names) + tuple(f"{c:.4g}" for c in fit.coef)
         if key not in floors:
             disc = discretisation_error(fitter, dt_max, tuple(fit.names), fit.coef, fit.init)
-            floors[key] = math.hypot(f_noise, disc)
+            floors[key] = math.sqrt(f_noise**2 + disc**2 + f_form**2)
         return floors[key]
     excess = math.sqrt(max(gap_before**2 - floor**2, 0.0))
     hidden_nominal = excess <= st.min_gap_rad
@@ -229,8 +238,11 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
             break
     swaps: list[dict[str, Any]] = []
     size_min_final = entry_threshold(gap_before, floor, gap_before, st)[1]
+    holdout: list[dict[str, Any]] = []
     if accepted:
         cur, swaps = swap(fitter, cur, reg0, dropped, size_min_final, st)
+        # no effect that the others make redundant out of sample (held-out time blocks)
+        cur, holdout = holdout_check(fitter, cur, st)
         if cur is not accepted[-1]:
             accepted.append(cur)
     result: dict[str, Any] = {
@@ -238,7 +250,7 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         "n_markers_compared": int(M.shape[0]), "model_N": params.N,
         "sample_rate_hz": 1.0 / period, "gp_noise_std_m": kin.noise_std_m,
         "gap_before": gap_before, "tip_gap_before": tip_before, "gap_floor": floor,
-        "gap_floor_noise": f_noise, "gap_floor_discretisation": f_disc,
+        "gap_floor_noise": f_noise, "gap_floor_discretisation": f_disc, "gap_floor_model_form": f_form,
         "gap_excess_over_floor": excess,
         "hidden_by_initial_state": hidden_nominal,
         "initial_state_fit": {"modes": st.init_modes, "nominal_corrections": nominal.init.tolist()},
@@ -247,7 +259,7 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
                                    "by the trajectory fit's BIC",
                       "bic_min_improvement": st.bic_min_improvement,
                       "tau_time": reg0.tau_t, "tau_s": reg0.tau_s, "tau_base": reg0.tau_b,
-                      "n_eff": reg0.n_eff, "steps": steps, "swaps": swaps},
+                      "n_eff": reg0.n_eff, "steps": steps, "swaps": swaps, "holdout": holdout},
     }
     effects: list[dict[str, Any]] = []
     best_attempt = None
@@ -282,12 +294,28 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         closes = excess_frac >= st.min_explained if hidden_nominal else frac >= st.min_explained
         if closes and remaining <= max(st.min_gap_rad, st.max_remaining * excess):
             effects, q_aug = attempt, fit.q
+    described = None
     if effects:
         verdict = "effect_found"
     elif hidden_nominal:
         verdict = "none"
     else:
-        verdict = "unexplained"
+        # no named effect closes the gap: learn the bending stiffness along s instead
+        rivals = tuple((step["model"] + [c["effect"]], c["rmse"])
+                       for step in steps for c in step["confirmation"])
+        described = describe(fitter, nominal, floor, nominal.tau, gap_before, excess, st, rivals)
+        q_desc = described.pop("_q")
+        # a change confined to the clamp's neighbourhood is the clamp's form (a clamp of finite
+        # length; another simulator's clamp model), not a missing effect, even where a library
+        # effect rejected by its own tests fits about as well
+        region = described["region"]
+        described["clamp_form"] = bool(described["closes_the_gap"] and region["s_to_m"] <= st.clamp_form_m)
+        if described["clamp_form"]:
+            verdict = "none"
+        elif described["accepted"]:
+            verdict, q_aug = "described", q_desc
+        else:
+            verdict = "unexplained"
     gap_after = theta_rmse(q_aug, kin.q, M)
     result.update({
         "effects": effects, "verdict": verdict, "gap_after": gap_after,
@@ -296,9 +324,13 @@ def discover(meas: Measured, params: RodParams, dt_max: float, st: DiscoverySett
         # share of the excess over the floor closed (floor, excess and remainder in quadrature)
         "explained_excess_fraction": (1.0 - math.sqrt(max(gap_after**2 - floor**2, 0.0)) / excess
                                       if excess > 0 else 0.0),
-        "where": where, "best_attempt": best_attempt,
+        "where": where, "best_attempt": best_attempt, "described": described,
         "indistinguishable_alternatives": alternatives(swaps, [e["name"] for e in effects], size_min_final,
                                                        st),
+        # effects that entered in-sample but did not predict held-out time blocks
+        "rejected_out_of_sample": [{"effect": h["effect"], "model": h["model"],
+                                    "held_out_evidence": h["held_out_evidence"]}
+                                   for h in holdout if h["dropped"]],
         "significant_but_below_tolerance": [k for k, g in steps[0]["residual_bic_gain"].items()
                                             if g >= st.bic_min_improvement] if verdict == "none" else [],
         "timing_s": {"gp_smoothing": t_smooth, "total": time.perf_counter() - t_start},

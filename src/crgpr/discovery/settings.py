@@ -25,6 +25,16 @@ class DiscoverySettings:
     refine_max_nfev: int
     gp_max_points: int
     bootstrap_replicates: int
+    floor_clamp_m: float
+    clamp_form_m: float
+    floor_clamp_factor: float
+    holdout_blocks: int
+    holdout_min_evidence: float
+    describe_knots: int
+    describe_prior_std: float
+    describe_length_scale: float
+    describe_iterations: int
+    describe_band_z: float
     seed: int
 
     @classmethod
@@ -42,4 +52,12 @@ class DiscoverySettings:
                    min_effect_fraction=float(d["min_effect_fraction"]), max_confirm=int(d["max_confirm"]),
                    max_effects=int(d["max_effects"]), bic_min_improvement=float(d["bic_min_improvement"]),
                    refine_max_nfev=int(d["refine_max_nfev"]), gp_max_points=int(d["gp_max_points"]),
-                   bootstrap_replicates=int(d["bootstrap_replicates"]), seed=int(seed))
+                   bootstrap_replicates=int(d["bootstrap_replicates"]),
+                   floor_clamp_m=float(d["floor_clamp_m"]), clamp_form_m=float(d["clamp_form_m"]),
+                   floor_clamp_factor=float(d["floor_clamp_factor"]),
+                   holdout_blocks=int(d["holdout_blocks"]),
+                   holdout_min_evidence=float(d["holdout_min_evidence"]),
+                   describe_knots=int(d["describe_knots"]), describe_prior_std=float(d["describe_prior_std"]),
+                   describe_length_scale=float(d["describe_length_scale"]),
+                   describe_iterations=int(d["describe_iterations"]),
+                   describe_band_z=float(d["describe_band_z"]), seed=int(seed))

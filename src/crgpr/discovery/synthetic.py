@@ -11,6 +11,7 @@ at the origin, two neighbouring markers swapped) and rows in random order.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -149,12 +150,21 @@ def make_measured(nominal: RodParams, d: dict[str, Any], case: dict[str, Any], s
     """Camera data of one hidden-effect case and its truth record (kept in a separate file).
 
     ``d`` is the ``discovery`` config section (record defaults), ``case`` one of its cases
-    (``effects``, ``disturbance``, ``truth_refine`` and ``camera`` overrides).
+    (``effects``, ``disturbance``, ``truth_refine``, ``model_form`` and ``camera`` overrides).
+    ``model_form`` makes the data simulator differ from the model in form with nothing hidden:
+    ``rigid_base_m`` of the rod next to the clamp ``rigid_base_factor`` times stiffer (a clamp
+    of finite length, through ``rod.material``'s defect law); the reference run has it too.
     """
     cam = {"noise_std_m": float(d["noise_std_m"]), "sample_rate_hz": float(d["sample_rate_hz"]),
            "duration_s": float(d["duration_s"]), "t_start_s": 0.0, **case.get("camera", {})}
     refine = int(case.get("truth_refine", d["truth_refine"]))
     fine = nominal.replace(N=nominal.N * refine)
+    form = case.get("model_form")
+    if form:
+        edge = 0.25 / fine.N  # sharp: a quarter of the data simulator's segment [s / L0]
+        fine = fine.replace(material=dataclasses.replace(
+            fine.material, defect_start=0.0, defect_end=float(form["rigid_base_m"]) / fine.L0,
+            defect_factor=float(form["rigid_base_factor"]), defect_edge=edge))
     p_truth = effect_params(fine, case.get("effects", {}))
     period = 1.0 / float(cam["sample_rate_hz"])
     skip = int(round(float(cam["t_start_s"]) / period))
@@ -168,7 +178,8 @@ def make_measured(nominal: RodParams, d: dict[str, Any], case: dict[str, Any], s
     rng = np.random.default_rng(seed)
     frame = camera_frame(t, q, p_truth, cam, rng, nominal.ds)
     truth = {"case": case["name"], "effects": dict(case.get("effects", {})),
-             "disturbance": case.get("disturbance"), "effect_size_rmse_theta_rad": effect_size,
+             "disturbance": case.get("disturbance"), "model_form": form,
+             "effect_size_rmse_theta_rad": effect_size,
              "theta0_deg": float(d["theta0_deg"]), "truth_N": p_truth.N, "truth_dt_s": st.dt,
              "camera": cam, "seed": seed, "rod": p_truth.to_dict()}
     return frame, truth

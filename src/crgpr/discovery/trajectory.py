@@ -149,6 +149,7 @@ class TrajectoryFitter:
     def __init__(self, params: RodParams, kin: Kinematics, dt_max: float, n_modes: int,
                  window_s: float):
         self.kin, self.dt_max, self.n_modes = kin, dt_max, n_modes
+        self.train: np.ndarray | None = None  # samples in the objective (None: all)
         self._set_grid(params)
         self.theta_m = kin.q[..., 2] @ self.M.T
         self.period = float(np.median(np.diff(kin.t)))
@@ -187,8 +188,11 @@ class TrajectoryFitter:
                                       self.period, n, self.dt_max)
         except SimulationDiverged:
             return None
-        r = (q[..., 2] @ self.M.T - self.theta_m[:n]).ravel()
-        J = np.einsum("taj,mj->tma", dq[..., 2], self.M).reshape(r.size, 2 * m)
+        r = self._weigh(q[..., 2] @ self.M.T - self.theta_m[:n])
+        J = np.einsum("taj,mj->tma", dq[..., 2], self.M)
+        if self.train is not None:
+            J = J * self.train[:n, None, None]
+        J = J.reshape(r.size, 2 * m)
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
             return None
         return r, J
@@ -219,8 +223,21 @@ class TrajectoryFitter:
             q = self.simulate(names, coef, c, n)
         except SimulationDiverged:
             return np.full(n * self.M.shape[0], 10.0)
-        r = (q[..., 2] @ self.M.T - self.theta_m[:n]).ravel()
+        r = self._weigh(q[..., 2] @ self.M.T - self.theta_m[:n])
         return r if np.all(np.isfinite(r)) else np.full(r.size, 10.0)
+
+    def _weigh(self, e: np.ndarray) -> np.ndarray:
+        """Theta errors (n, markers) -> the residual vector, samples outside ``train`` zeroed."""
+        if self.train is not None:
+            e = e * self.train[:e.shape[0], None]
+        return e.ravel()
+
+    def masked(self, train: np.ndarray) -> TrajectoryFitter:
+        """The same fitter with only the samples where ``train`` (n,) is 1 in its objective (the
+        model is still simulated over the whole record; the others are held out)."""
+        g = copy.copy(self)
+        g.train = np.asarray(train, float)
+        return g
 
     def score(self, base: TrajectoryFit, k: str) -> float:
         """Linearised trajectory evidence for adding candidate ``k`` to the model ``base``:
