@@ -41,6 +41,7 @@ from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
+from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
     NOMINAL_LAWS,
@@ -155,10 +156,10 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           f"{OBJ_M_FEATURES}")
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
-    odd = None
-    if cam["bending_symmetry"] == "odd" and features == "objective":
-        if bend != ["kappa"]:
-            raise ConfigError("camera.learn.bending_symmetry: odd needs camera.learn.bending_inputs: [kappa]")
+    odd, sym = None, cam["bending_symmetry"]
+    if sym in ("odd", "auto") and features == "objective" and bend != ["kappa"]:
+        raise ConfigError(f"camera.learn.bending_symmetry: {sym} needs camera.learn.bending_inputs: [kappa]")
+    if sym == "odd" and features == "objective":
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
     masks = {n: inner_segments(params.N, trim) for n in trained}
@@ -178,6 +179,12 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
+    rest = None
+    if sym == "auto" and features == "objective" and "obj_m" in trained:
+        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
+        Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
+        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
+        odd = rest.kappa_rest if rest.symmetric else None
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -196,6 +203,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
+                "bending_symmetry": sym, "rest_state": None if rest is None else rest.to_dict(),
                 "models": trained, **grey,
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}

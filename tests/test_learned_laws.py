@@ -1,0 +1,98 @@
+"""The learned bending law's rest state is decided by the data (learning/laws.py, crgpr learn)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from crgpr.commands.learn import learn, load_learned
+from crgpr.config import ConfigError, load_config, validate_schema
+from crgpr.io import write_parquet
+from crgpr.learning.laws import rest_state
+from crgpr.physics.params import SimSettings
+from crgpr.physics.simulate import simulate, trajectory_frame
+
+SMOKE = "tests/smoke_config.yaml"
+EI = 0.0024  # a bending stiffness of the order of the config's rod [N m^2]
+
+
+def _record(c: float, n: int = 2000, seed: int = 0, noise: float = 1e-4):
+    """Curvatures of a damped oscillation about 1/m (time-ordered, mostly one way) and a cubic
+    law odd about c, with target noise."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    kappa = 1.0 + 3.0 * np.exp(-t) * np.cos(9.0 * t) + 0.05 * rng.standard_normal(n)
+    d = kappa - c
+    return kappa, EI * d * (1.0 + 0.05 * d**2) + noise * rng.standard_normal(n)
+
+
+def test_rest_curvature_of_an_odd_law_is_recovered_within_its_band():
+    kappa, m = _record(c=1.7)
+    r = rest_state(kappa, m, degree=3, blocks=10)
+    assert r.symmetric
+    assert r.band_lo <= 1.7 <= r.band_hi and r.band_hi - r.band_lo < 0.2, r
+
+
+def test_a_law_that_is_not_odd_about_any_curvature_is_not_mirrored():
+    kappa, _ = _record(c=0.0)
+    m = EI * (kappa + 0.4 * kappa**2)  # stiffer one way than the other (an asymmetric section)
+    r = rest_state(kappa, m, degree=3, blocks=10)
+    assert not r.symmetric and r.heldout_mse_general < r.heldout_mse_odd, r
+
+
+@settings(max_examples=15, deadline=None)
+@given(shift=st.floats(-5.0, 5.0), c=st.floats(-1.0, 3.0))
+def test_rest_curvature_moves_with_the_curvature_axis(shift, c):
+    """Relabelling curvature by a constant moves the estimated rest curvature by the same constant."""
+    kappa, m = _record(c=c, seed=1)
+    a, b = rest_state(kappa, m, 3, 8), rest_state(kappa + shift, m, 3, 8)
+    assert b.kappa_rest == pytest.approx(a.kappa_rest + shift, abs=1e-6)
+    assert b.se == pytest.approx(a.se, rel=1e-3, abs=1e-8) and b.symmetric == a.symmetric
+
+
+def test_rest_state_rejects_an_even_degree():
+    kappa, m = _record(c=0.0)
+    with pytest.raises(ValueError, match="degree"):
+        rest_state(kappa, m, degree=2, blocks=10)
+
+
+def test_schema_rejects_an_even_rest_degree():
+    import copy
+
+    cfg = copy.deepcopy(load_config(SMOKE))
+    cfg["camera"]["learn"]["rest_degree"] = 2
+    with pytest.raises(ConfigError, match="rest_degree"):
+        validate_schema(cfg)
+
+
+@pytest.fixture(scope="module")
+def precurved_models(tmp_path_factory, smoke_training_run):
+    """A pre-curved smoke rod (rest curvature 2 /m, the nominal rod's 0) learned from its full
+    state, with the rest state estimated (auto) and mirrored about the nominal kappa0 (odd)."""
+    cfg, tr = smoke_training_run
+    truth = replace(tr.params, kappa0=2.0)
+    rec = simulate(85.0, truth, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
+    d = tmp_path_factory.mktemp("precurved")
+    write_parquet(trajectory_frame(rec), d / "full.parquet")
+    learn(d / "full.parquet", d / "auto", cfg, "objective", "gp")
+    return cfg, d, truth
+
+
+def test_precurved_rods_rest_curvature_is_recovered_within_its_band(precurved_models):
+    cfg, d, truth = precurved_models
+    model, man = load_learned(d / "auto")
+    rest = man["rest_state"]
+    assert man["rod"]["kappa0"] == 0.0  # the nominal rod knows nothing of the rest curvature
+    assert rest["symmetric"] and rest["band_lo"] <= truth.kappa0 <= rest["band_hi"], rest
+    assert man["bending_odd_about"] == rest["kappa_rest"]
+    # the learned moment vanishes at the rest curvature and is odd about it
+    c, k = rest["kappa_rest"], 1.5
+    X = np.zeros((3, 5))
+    X[:, 0] = [c - k, c, c + k]
+    m = model.components["obj_m"](X)
+    assert abs(m[1]) < 0.05 * abs(m[2]) and m[2] == pytest.approx(-m[0], rel=0.05), m
+    assert m[2] == pytest.approx(k * truth.EI, rel=0.1)
