@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 
 from crgpr.commands.learn import learn, load_learned
 from crgpr.config import ConfigError, load_config, validate_schema
-from crgpr.io import write_parquet
+from crgpr.gp import load_model
+from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.laws import rest_state
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
@@ -96,3 +97,30 @@ def test_precurved_rods_rest_curvature_is_recovered_within_its_band(precurved_mo
     m = model.components["obj_m"](X)
     assert abs(m[1]) < 0.05 * abs(m[2]) and m[2] == pytest.approx(-m[0], rel=0.05), m
     assert m[2] == pytest.approx(k * truth.EI, rel=0.1)
+
+
+def test_learned_law_is_written_as_a_table_and_figure_with_its_covered_range(precurved_models):
+    cfg, d, truth = precurved_models
+    man = load_learned(d / "auto")[1]
+    assert man["law_table"] == "laws.parquet" and (d / "auto" / "laws.png").stat().st_size > 0
+    tab = read_parquet(d / "auto" / man["law_table"])
+    m = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa")]
+    assert len(m) == cfg["camera"]["learn"]["law_table"]["n_grid"]
+    lo, hi = man["law_inputs_covered"]["obj_m"]["kappa"]
+    arrays, _ = load_model(d / "auto" / "obj_m")
+    assert (lo, hi) == (arrays["X"].min(), arrays["X"].max())
+    assert m["covered"].to_numpy().any() and (~m["covered"].to_numpy()).any()
+    # every learned model's inputs have their covered range in the manifest
+    assert set(man["law_inputs_covered"]) == set(man["models"])
+    # the nominal law beside it is the nominal rod's m = EI (kappa - kappa0), kappa0 = 0
+    assert np.allclose(m["nominal"], truth.EI * m["x"])
+
+
+def test_posterior_sd_of_a_learned_law_grows_beyond_its_covered_range(precurved_models):
+    _, d, _ = precurved_models
+    tab = read_parquet(d / "auto" / "laws.parquet")
+    m = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa")].sort_values("x")
+    inside, sd = m["covered"].to_numpy(), m["sd"].to_numpy()
+    assert np.all(np.isfinite(sd)) and np.all(sd >= 0)
+    # at both ends of the grid (half the covered width beyond it) the sd exceeds every sd inside
+    assert sd[0] > sd[inside].max() and sd[-1] > sd[inside].max(), (sd[0], sd[inside].max(), sd[-1])

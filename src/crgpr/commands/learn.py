@@ -41,6 +41,7 @@ from crgpr.io import code_version, read_parquet, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
+from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
@@ -58,6 +59,7 @@ from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 MANIFEST = "manifest.json"
+LAW_TABLE, LAW_FIGURE = "laws.parquet", "laws.png"
 FEATURES: tuple[str, ...] = ("objective", "paper")
 MOMENTUM_COLUMNS = ("p_x", "p_y", "p_theta")
 
@@ -197,6 +199,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   columns=m_cols if name == "obj_m" else None,
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
+    laws = law_outputs(out, trained, params, cam["law_table"], seed)
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(), "state": state_report,
                 "trim_ends": trim, "trim_ends_per_model": trims,
@@ -204,11 +207,29 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": sym, "rest_state": None if rest is None else rest.to_dict(),
-                "models": trained, **grey,
+                "models": trained, **grey, **laws,
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
+
+
+def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int
+                ) -> dict[str, Any]:
+    """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
+    (``report.laws``) in the model directory; returns the manifest's entries (the covered range
+    of every learned model's inputs, the file names)."""
+    from crgpr.report.laws import law_figure
+
+    cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
+           for m in trained}
+    tab = law_tables(out, trained, params, settings, seed)
+    if tab.empty:
+        return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
+    write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, "
+                                         "nominal, covered, covered_lo, covered_hi, sd_points (SI units)"})
+    law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
+    return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 
 
 def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,
