@@ -18,6 +18,11 @@ last; its presence marks a complete directory): features, prefilter, input kind,
 rod parameters, the derived-state report (estimated noise level, frames used), the laws taken
 from the nominal rod (``nominal_laws``, ``strain_snr``; ``models`` lists the learned ones) and the seeds,
 so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
+
+The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: auto``) are
+estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
+the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
+``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``).
 """
 
 from __future__ import annotations
