@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn, load_learned
 from crgpr.config import ConfigError, load_config, validate_schema
 from crgpr.gp import load_model
@@ -73,13 +74,15 @@ def test_schema_rejects_an_even_rest_degree():
 @pytest.fixture(scope="module")
 def precurved_models(tmp_path_factory, smoke_training_run):
     """A pre-curved smoke rod (rest curvature 2 /m, the nominal rod's 0) learned from its full
-    state, with the rest state estimated (auto) and mirrored about the nominal kappa0 (odd)."""
+    state and from 1 mm camera positions, the rest state estimated (the config's auto)."""
     cfg, tr = smoke_training_run
     truth = replace(tr.params, kappa0=2.0)
     rec = simulate(85.0, truth, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
     d = tmp_path_factory.mktemp("precurved")
     write_parquet(trajectory_frame(rec), d / "full.parquet")
     learn(d / "full.parquet", d / "auto", cfg, "objective", "gp")
+    write_parquet(camera_frame(rec.t, rec.q, 1e-3, np.random.default_rng(5)), d / "camera.parquet")
+    learn(d / "camera.parquet", d / "camera", cfg, "objective", "gp")
     return cfg, d, truth
 
 
@@ -97,6 +100,15 @@ def test_precurved_rods_rest_curvature_is_recovered_within_its_band(precurved_mo
     m = model.components["obj_m"](X)
     assert abs(m[1]) < 0.05 * abs(m[2]) and m[2] == pytest.approx(-m[0], rel=0.05), m
     assert m[2] == pytest.approx(k * truth.EI, rel=0.1)
+
+
+def test_precurved_rods_rest_curvature_is_recovered_from_1mm_camera_positions(precurved_models):
+    _, d, truth = precurved_models
+    man = load_learned(d / "camera")[1]
+    rest = man["rest_state"]
+    assert man["input"] == "positions" and rest["symmetric"], rest
+    assert rest["band_lo"] <= truth.kappa0 <= rest["band_hi"]
+    assert man["bending_odd_about"] == rest["kappa_rest"]
 
 
 def test_learned_law_is_written_as_a_table_and_figure_with_its_covered_range(precurved_models):
