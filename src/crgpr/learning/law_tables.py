@@ -19,6 +19,7 @@ both sides, the other inputs at their training medians:
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -91,8 +92,6 @@ def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, set
                seed: int) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
     ``camera.learn.law_table``: n_grid, pad, max_points)."""
-    import json
-
     out = []
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
