@@ -86,7 +86,7 @@ def main() -> None:
     rl, rn = [], []
     for a in ANGLES:
         gt = trajectory_frame(simulate(a, truth, st))
-        nom = trajectory_frame(simulate(a, nominal, st))
+        nom = gt if truth == nominal else trajectory_frame(simulate(a, nominal, st))
         try:
             lr = trajectory_frame(rollout(model, a, st))
             e = accuracy(gt, lr, nominal.L0)["rmse_theta"]
