@@ -99,7 +99,8 @@ def main() -> None:
         row[f"nominal_rmse_theta_{a:g}"] = rn[-1]
     row["mean_rmse_theta"] = float(np.mean(rl))
     row["nominal_mean_rmse_theta"] = float(np.mean(rn))
-    row["ratio_to_nominal"] = row["mean_rmse_theta"] / row["nominal_mean_rmse_theta"]
+    nom_mean = row["nominal_mean_rmse_theta"]
+    row["ratio_to_nominal"] = row["mean_rmse_theta"] / nom_mean if nom_mean > 0 else float("nan")
     for k in ("bending_odd_about", "rest_state", "nominal_laws", "models"):
         if k in man:
             row[k] = json.dumps(man[k])
