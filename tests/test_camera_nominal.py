@@ -113,13 +113,17 @@ def test_manifest_records_the_grey_box_decision(noisy_models):
     assert man["position_noise_std_m_differences"] == pytest.approx(1e-3, rel=0.15)
     model, _ = load_learned(d / "auto")
     assert isinstance(model.components["obj_n1"], NominalLaw)
-    # the bending law m(kappa), odd about the nominal rest curvature (0): bends both ways alike,
-    # although the 85 deg record curves the rod mostly one way
-    assert man["bending_inputs"] == ["kappa"] and man["bending_odd_about"] == 0.0
+    # the bending law m(kappa), odd about the rest curvature estimated from the data (the
+    # straight rod's 0 within its band): bends both ways alike, although the 85 deg record
+    # curves the rod mostly one way
+    rest = man["rest_state"]
+    assert man["bending_inputs"] == ["kappa"] and man["bending_symmetry"] == "auto" and rest["symmetric"]
+    assert man["bending_odd_about"] == rest["kappa_rest"] and rest["band_lo"] <= 0.0 <= rest["band_hi"], rest
+    c = rest["kappa_rest"]
     arrays, _ = load_model(d / "auto" / "obj_m")
-    k = 0.5 * float(np.abs(arrays["X"]).max())  # inside the (mirrored) training range
+    k = 0.5 * float(np.abs(arrays["X"] - c).max())  # inside the (mirrored) training range
     X = np.zeros((2, 5))
-    X[:, 0] = [-k, k]
+    X[:, 0] = [c - k, c + k]
     m = model.components["obj_m"](X)
     P = rod_params(cfg)
     assert m[1] == pytest.approx(-m[0], rel=0.1) and m[1] == pytest.approx(k * P.EI, rel=0.3), (k, m)

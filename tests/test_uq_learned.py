@@ -38,7 +38,8 @@ def grey_box(tmp_path_factory, smoke_training_run) -> tuple[dict, Path]:
     write_parquet(camera_frame(tr.t, tr.q, 1e-3, np.random.default_rng(7)), d / "cam.parquet")
     learn(d / "cam.parquet", d / "model", cfg, "objective", "gp")
     man = read_manifest(d / "model")
-    assert man["nominal_laws"] == ["n1", "n2"] and man["bending_odd_about"] == 0.0
+    assert man["nominal_laws"] == ["n1", "n2"] and man["rest_state"]["symmetric"]
+    assert man["bending_odd_about"] == man["rest_state"]["kappa_rest"]
     return cfg, d
 
 
@@ -71,12 +72,14 @@ def test_learned_rod_with_zero_variance_samples_reproduces_the_mean_rollout(grey
 
 
 def test_odd_law_rows_are_kept_next_to_their_reflections(grey_box):
-    """m(kappa) is trained on samples and their reflections (2 kappa0 - kappa, -m); the UQ stage
-    orders them pairwise, so that a contiguous held-out block is a time block with its mirror."""
+    """m(kappa) is trained on samples and their reflections (2 k_r - kappa, -m), k_r the rest
+    curvature estimated from the data; the UQ stage orders them pairwise, so that a contiguous
+    held-out block is a time block with its mirror."""
     _, d = grey_box
+    about = read_manifest(d / "model")["bending_odd_about"]
     spec, _, grid = load_gp_spec(d / "model" / "obj_m", "obj_m")
     X, y = spec.X[:, 0], np.ravel(spec.Y)
-    np.testing.assert_allclose(X[0::2], -X[1::2], rtol=0, atol=1e-12)  # odd about kappa0 = 0
+    np.testing.assert_allclose(X[0::2], 2.0 * about - X[1::2], rtol=0, atol=1e-12 * (1.0 + np.abs(X).max()))
     np.testing.assert_allclose(y[0::2], -y[1::2], rtol=0, atol=1e-12)
     assert grid is not None and "table_y" in spec.rollout_arrays
 

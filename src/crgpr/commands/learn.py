@@ -21,6 +21,11 @@ rod parameters, the configuration values used (``config``: its source, the ``--s
 and the sections read), the derived-state report (estimated noise level, frames used), the laws
 taken from the nominal rod (``nominal_laws``, ``strain_snr``; ``models`` lists the learned ones)
 and the seeds, so that ``crgpr rollout --models MODEL_DIR`` needs no method entry in the config.
+
+The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: auto``) are
+estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
+the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
+``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``).
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
+from crgpr.learning.law_tables import covered_ranges, law_tables
+from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
     NOMINAL_LAWS,
@@ -54,7 +61,6 @@ from crgpr.learning.nominal import (
     strain_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
-from crgpr.learning.rest_curvature import rest_curvature_estimate
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -64,6 +70,7 @@ from crgpr.physics.signals import Inputs, read_inputs
 from crgpr.physics.simulate import Trajectory, trajectory_frame
 
 MANIFEST = "manifest.json"
+LAW_TABLE, LAW_FIGURE = "laws.parquet", "laws.png"
 FEATURES: tuple[str, ...] = ("objective", "paper")
 MOMENTUM_COLUMNS = ("p_x", "p_y", "p_theta")
 
@@ -192,12 +199,10 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           f"{OBJ_M_FEATURES}")
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
-    odd = None
-    symmetry = cam["bending_symmetry"]
-    if symmetry != "none" and features == "objective":
-        if bend != ["kappa"]:
-            raise ConfigError(f"camera.learn.bending_symmetry: {symmetry} needs "
-                              "camera.learn.bending_inputs: [kappa]")
+    odd, sym = None, cam["bending_symmetry"]
+    if sym in ("odd", "auto") and features == "objective" and bend != ["kappa"]:
+        raise ConfigError(f"camera.learn.bending_symmetry: {sym} needs camera.learn.bending_inputs: [kappa]")
+    if sym == "odd" and features == "objective":
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     trims = {n: trim for n in trained}
     masks = {n: inner_segments(params.N, trim) for n in trained}
@@ -217,13 +222,15 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
-    if odd is not None and symmetry == "odd_estimated":
-        # the rest curvature from the data (the zero of m(kappa)), not the nominal rod's kappa0
-        X_m, y_m = training_data(arr, params, "obj_m", None, masks.get("obj_m"))
-        try:
-            odd = rest_curvature_estimate(X_m[:, OBJ_M_FEATURES.index("kappa")], y_m)
-        except ValueError as exc:
-            raise ValueError(f"{measured}: camera.learn.bending_symmetry: odd_estimated: {exc}") from exc
+    rest = None
+    if sym == "auto" and features == "objective" and "obj_m" in trained:
+        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
+        Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
+        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
+        # mirrored about the estimate only where its band excludes the nominal kappa0: where the data
+        # cannot tell them apart, the nominal rest state is kept (it is exact for a straight rod)
+        nominal_in_band = rest.band_lo <= float(params.kappa0) <= rest.band_hi
+        odd = None if not rest.symmetric else float(params.kappa0) if nominal_in_band else rest.kappa_rest
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -236,6 +243,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   columns=m_cols if name == "obj_m" else None,
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
+    laws = law_outputs(out, trained, params, cam["law_table"], seed)
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -243,14 +251,33 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
-                "bending_symmetry": symmetry if features == "objective" else None,
-                "models": trained, **grey,
+                "bending_symmetry": sym if features == "objective" else None,
+                "rest_state": None if rest is None else rest.to_dict(),
+                "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
                 "model_reports": reports, "seed": seed,
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
+
+
+def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int
+                ) -> dict[str, Any]:
+    """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
+    (``report.laws``) in the model directory; returns the manifest's entries (the covered range
+    of every learned model's inputs, the file names)."""
+    from crgpr.report.laws import law_figure
+
+    cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
+           for m in trained}
+    tab = law_tables(out, trained, params, settings, seed)
+    if tab.empty:
+        return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
+    write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, "
+                                         "nominal, covered, covered_lo, covered_hi, sd_points (SI units)"})
+    law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
+    return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 
 
 def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,

@@ -1,0 +1,101 @@
+"""The learned constitutive laws as tables: input grid, posterior mean and sd, the covered range.
+
+For each learned objective law (``obj_m``, and ``obj_n1`` / ``obj_n2`` where learned, eq. (10):
+the local resultants n1, n2, m as functions of the strains nu1, nu2, kappa) and each of its
+inputs x_j, one table row per grid point of x_j over the covered range [lo_j, hi_j] (the
+training inputs' min and max, mirrored samples included) widened by ``pad`` x (hi_j - lo_j) on
+both sides, the other inputs at their training medians:
+
+* ``mean``: the posterior mean the rollout integrates (the model's saved rollout evaluator);
+* ``sd``: the latent posterior sd of the same GP (its hyperparameters and basis) conditioned on
+  a seeded subset of at most ``max_points`` of its training points (an exact sd over all n
+  points would cost O(n^3); conditioning on fewer points can only widen the sd, so the band is
+  conservative inside the covered range and exact in its growth beyond it, where the basis
+  coefficients' uncertainty and the prior variance take over);
+* ``nominal``: the nominal rod's law at the same inputs (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 -
+  nu2_0), m = EI (kappa - kappa0));
+* ``covered``: whether x_j lies inside [lo_j, hi_j].
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from crgpr.gp import GP, Table1D, load_evaluator
+from crgpr.physics.params import RodParams
+
+LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
+
+
+def covered_ranges(stem: str | Path, features: list[str]) -> dict[str, list[float]]:
+    """[min, max] of each training input of a saved model (its ``X``)."""
+    with np.load(Path(stem).with_suffix(".npz"), allow_pickle=False) as f:
+        X = np.asarray(f["X"], dtype=float)
+    return {name: [float(X[:, j].min()), float(X[:, j].max())] for j, name in enumerate(features)}
+
+
+def nominal_law(name: str, features: list[str], X: np.ndarray, params: RodParams) -> np.ndarray:
+    """The nominal rod's resultant of law ``name`` at rows X over ``features`` (NaN if an input is absent)."""
+    col = {"obj_n1": ("nu1", params.EA, params.nu1_0), "obj_n2": ("nu2", params.GA, params.nu2_0),
+           "obj_m": ("kappa", params.EI, params.kappa0)}[name]
+    if col[0] not in features:
+        return np.full(X.shape[0], np.nan)
+    return col[1] * (X[:, features.index(col[0])] - col[2])
+
+
+def _mean(stem: Path, X: np.ndarray) -> np.ndarray:
+    ev = load_evaluator(stem)
+    return np.asarray(ev(X[:, 0]) if isinstance(ev, Table1D) else ev(X), dtype=float).ravel()
+
+
+def _sd_model(stem: Path, max_points: int, seed: int) -> GP:
+    gp = GP.load(stem)
+    idx = np.arange(gp.n)
+    if gp.n > max_points:
+        idx = np.sort(np.random.default_rng(seed).choice(gp.n, size=max_points, replace=False))
+    return GP.from_standardised(gp.Xs[idx], gp.y[idx], gp.sigma_f, gp.lengthscales, gp.sigma_n, gp.basis,
+                                gp.x_mean, gp.x_scale, float(gp.y_mean[0]), float(gp.y_scale[0]),
+                                kernel=gp.kernel)
+
+
+def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
+              max_points: int, seed: int) -> pd.DataFrame:
+    """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
+    covered_lo, covered_hi, sd_points."""
+    stem = Path(stem)
+    with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
+        Xt = np.asarray(f["X"], dtype=float)
+    sd_gp = _sd_model(stem, max_points, seed)
+    med = np.median(Xt, axis=0)
+    rows = []
+    for j, feat in enumerate(features):
+        lo, hi = float(Xt[:, j].min()), float(Xt[:, j].max())
+        w = pad * max(hi - lo, 1e-12)
+        g = np.linspace(lo - w, hi + w, n_grid)
+        X = np.tile(med, (n_grid, 1))
+        X[:, j] = g
+        _, var = sd_gp.predict(X, return_var=True)
+        rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X),
+                                  "sd": np.sqrt(np.asarray(var, dtype=float).ravel()),
+                                  "nominal": nominal_law(name, features, X, params),
+                                  "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
+                                  "sd_points": int(sd_gp.n)}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
+               seed: int) -> pd.DataFrame:
+    """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
+    ``camera.learn.law_table``: n_grid, pad, max_points)."""
+    out = []
+    for name in (m for m in LAW_MODELS if m in trained):
+        stem = Path(model_dir) / name
+        meta = json.loads(stem.with_suffix(".json").read_text())
+        out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
+                             float(settings["pad"]), int(settings["max_points"]), seed))
+    return pd.concat(out, ignore_index=True) if out else pd.DataFrame()

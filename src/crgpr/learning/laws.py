@@ -1,0 +1,124 @@
+"""The rest state of a learned bending law, estimated from the data (paper Sec. II: unknown laws).
+
+A rod with a symmetric cross-section has a bending moment odd about its rest curvature k_r,
+m(2 k_r - k) = -m(k) (the discrete law behind the learned m of eq. (10)); mirroring training
+samples about k_r lets a record that bends the rod mostly one way teach the law both ways.
+Mirroring about the *nominal* kappa0 is wrong for a rod whose rest curvature differs from it,
+and mirroring is wrong altogether for a law that is not odd about any curvature. So both the
+rest curvature and the symmetry are decided from the samples (kappa_i, m_i) of the law:
+
+* odd law about c (``degree`` D odd):  m = sum_{k odd <= D} a_k (kappa - c)^k;
+  c by profile least squares (the coefficients a_k in closed form for each c; c on a grid over
+  the samples' range widened by that range on both sides, then refined by a bounded scalar
+  search);
+* general law: a polynomial of degree D in kappa (no symmetry), the alternative;
+* decision by held-out time blocks: the samples (time-major rows, as ``training_data`` returns
+  them) are cut into ``blocks`` contiguous blocks; each law is fitted without one block and
+  predicts it; the odd law is used (and the samples mirrored about its c) unless the general
+  law's held-out mean squared error is smaller. Contiguous blocks, not single samples: the
+  samples of one trajectory are correlated in time, so a per-sample criterion (BIC) would take
+  any small asymmetry of one record for a law.
+* the band of c: the delete-a-block jackknife over the same blocks, c +- 1.96 se (95 %).
+
+Noisy curvature inputs (camera data) attenuate the fitted slope (errors in variables), which
+moves c away from the samples' mean curvature; the jackknife band does not include that bias.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+
+
+@dataclass(frozen=True)
+class RestState:
+    """Estimated rest curvature of a bending law and the symmetry decision (JSON-able)."""
+
+    kappa_rest: float  # c of the odd law fitted to all samples [1/m]
+    band_lo: float  # c - 1.96 se (delete-a-block jackknife) [1/m]
+    band_hi: float  # c + 1.96 se [1/m]
+    se: float  # jackknife standard error of c [1/m]
+    heldout_mse_odd: float  # held-out-block mean squared error of the odd law [(N m)^2]
+    heldout_mse_general: float  # ... of the general polynomial [(N m)^2]
+    symmetric: bool  # the odd law is used: samples mirrored about kappa_rest
+    degree: int
+    blocks: int
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _odd_design(u: np.ndarray, degree: int) -> np.ndarray:
+    return np.stack([u**k for k in range(1, degree + 1, 2)], axis=-1)
+
+
+def _lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ coef
+    return coef, float(r @ r)
+
+
+def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float) -> tuple[float, np.ndarray]:
+    """(c, a) of the odd law minimising the squared residual (profile least squares)."""
+    lo, hi = float(kappa.min()), float(kappa.max())
+    span = max(hi - lo, 1e-12)
+
+    def rss(c: float) -> float:
+        return _lstsq(_odd_design((kappa - c) / scale, degree), m)[1]
+
+    grid = np.linspace(lo - span, hi + span, 301)
+    vals = np.array([rss(c) for c in grid])
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 1e-10 * span})
+    c = float(res.x) if res.fun <= vals[i] else float(grid[i])
+    return c, _lstsq(_odd_design((kappa - c) / scale, degree), m)[0]
+
+
+def _odd_predict(kappa: np.ndarray, c: float, coef: np.ndarray, degree: int, scale: float) -> np.ndarray:
+    return _odd_design((kappa - c) / scale, degree) @ coef
+
+
+def _general_design(kappa: np.ndarray, center: float, scale: float, degree: int) -> np.ndarray:
+    u = (kappa - center) / scale
+    return np.stack([u**k for k in range(degree + 1)], axis=-1)
+
+
+def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> RestState:
+    """Rest curvature, its 95 % band and the symmetry decision from law samples (see module doc).
+
+    ``kappa``, ``m``: (n,) curvature inputs and bending-moment targets, rows in time order;
+    ``degree``: odd polynomial degree of both laws; ``blocks``: contiguous held-out blocks (>= 2).
+    """
+    kappa = np.asarray(kappa, dtype=float).ravel()
+    m = np.asarray(m, dtype=float).ravel()
+    if degree < 1 or degree % 2 == 0:
+        raise ValueError(f"rest_state: degree {degree} must be odd and >= 1")
+    if blocks < 2 or kappa.size < blocks * (degree + 2):
+        raise ValueError(f"rest_state: {kappa.size} samples cannot fill {blocks} blocks of a degree-{degree} "
+                         "law")
+    center = float(kappa.mean())
+    scale = float(kappa.std()) or 1.0
+    c, _ = _odd_fit(kappa, m, degree, scale)
+    edges = np.linspace(0, kappa.size, blocks + 1).astype(int)
+    cs, e_odd, e_gen = [], 0.0, 0.0
+    for b in range(blocks):
+        test = np.zeros(kappa.size, dtype=bool)
+        test[edges[b]:edges[b + 1]] = True
+        kt, mt = kappa[~test], m[~test]
+        cb, ab = _odd_fit(kt, mt, degree, scale)
+        cs.append(cb)
+        e_odd += float(np.sum((m[test] - _odd_predict(kappa[test], cb, ab, degree, scale)) ** 2))
+        g, _ = _lstsq(_general_design(kt, center, scale, degree), mt)
+        e_gen += float(np.sum((m[test] - _general_design(kappa[test], center, scale, degree) @ g) ** 2))
+    cs_a = np.array(cs)
+    se = math.sqrt((blocks - 1) / blocks * float(np.sum((cs_a - cs_a.mean()) ** 2)))
+    mse_odd, mse_gen = e_odd / kappa.size, e_gen / kappa.size
+    return RestState(kappa_rest=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se, se=se,
+                     heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
+                     symmetric=bool(mse_odd <= mse_gen), degree=int(degree), blocks=int(blocks))

@@ -1,0 +1,138 @@
+"""The learned bending law's rest state is decided by the data (learning/laws.py, crgpr learn)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from crgpr.commands.camera import camera_frame
+from crgpr.commands.learn import learn, load_learned
+from crgpr.config import ConfigError, load_config, validate_schema
+from crgpr.gp import load_model
+from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.laws import rest_state
+from crgpr.physics.params import SimSettings
+from crgpr.physics.simulate import simulate, trajectory_frame
+
+SMOKE = "tests/smoke_config.yaml"
+EI = 0.0024  # a bending stiffness of the order of the config's rod [N m^2]
+
+
+def _record(c: float, n: int = 2000, seed: int = 0, noise: float = 1e-4):
+    """Curvatures of a damped oscillation about 1/m (time-ordered, mostly one way) and a cubic
+    law odd about c, with target noise."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    kappa = 1.0 + 3.0 * np.exp(-t) * np.cos(9.0 * t) + 0.05 * rng.standard_normal(n)
+    d = kappa - c
+    return kappa, EI * d * (1.0 + 0.05 * d**2) + noise * rng.standard_normal(n)
+
+
+def test_rest_curvature_of_an_odd_law_is_recovered_within_its_band():
+    kappa, m = _record(c=1.7)
+    r = rest_state(kappa, m, degree=3, blocks=10)
+    assert r.symmetric
+    assert r.band_lo <= 1.7 <= r.band_hi and r.band_hi - r.band_lo < 0.2, r
+
+
+def test_a_law_that_is_not_odd_about_any_curvature_is_not_mirrored():
+    kappa, _ = _record(c=0.0)
+    m = EI * (kappa + 0.4 * kappa**2)  # stiffer one way than the other (an asymmetric section)
+    r = rest_state(kappa, m, degree=3, blocks=10)
+    assert not r.symmetric and r.heldout_mse_general < r.heldout_mse_odd, r
+
+
+@settings(max_examples=15, deadline=None)
+@given(shift=st.floats(-5.0, 5.0), c=st.floats(-1.0, 3.0))
+def test_rest_curvature_moves_with_the_curvature_axis(shift, c):
+    """Relabelling curvature by a constant moves the estimated rest curvature by the same constant."""
+    kappa, m = _record(c=c, seed=1)
+    a, b = rest_state(kappa, m, 3, 8), rest_state(kappa + shift, m, 3, 8)
+    assert b.kappa_rest == pytest.approx(a.kappa_rest + shift, abs=1e-6)
+    assert b.se == pytest.approx(a.se, rel=1e-3, abs=1e-8) and b.symmetric == a.symmetric
+
+
+def test_rest_state_rejects_an_even_degree():
+    kappa, m = _record(c=0.0)
+    with pytest.raises(ValueError, match="degree"):
+        rest_state(kappa, m, degree=2, blocks=10)
+
+
+def test_schema_rejects_an_even_rest_degree():
+    import copy
+
+    cfg = copy.deepcopy(load_config(SMOKE))
+    cfg["camera"]["learn"]["rest_degree"] = 2
+    with pytest.raises(ConfigError, match="rest_degree"):
+        validate_schema(cfg)
+
+
+@pytest.fixture(scope="module")
+def precurved_models(tmp_path_factory, smoke_training_run):
+    """A pre-curved smoke rod (rest curvature 2 /m, the nominal rod's 0) learned from its full
+    state and from 1 mm camera positions, the rest state estimated (the config's auto)."""
+    cfg, tr = smoke_training_run
+    truth = replace(tr.params, kappa0=2.0)
+    rec = simulate(85.0, truth, SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"))
+    d = tmp_path_factory.mktemp("precurved")
+    write_parquet(trajectory_frame(rec), d / "full.parquet")
+    learn(d / "full.parquet", d / "auto", cfg, "objective", "gp")
+    write_parquet(camera_frame(rec.t, rec.q, 1e-3, np.random.default_rng(5)), d / "camera.parquet")
+    learn(d / "camera.parquet", d / "camera", cfg, "objective", "gp")
+    return cfg, d, truth
+
+
+def test_precurved_rods_rest_curvature_is_recovered_within_its_band(precurved_models):
+    cfg, d, truth = precurved_models
+    model, man = load_learned(d / "auto")
+    rest = man["rest_state"]
+    assert man["rod"]["kappa0"] == 0.0  # the nominal rod knows nothing of the rest curvature
+    assert rest["symmetric"] and rest["band_lo"] <= truth.kappa0 <= rest["band_hi"], rest
+    assert man["bending_odd_about"] == rest["kappa_rest"]
+    # the learned moment vanishes at the rest curvature and is odd about it
+    c, k = rest["kappa_rest"], 1.5
+    X = np.zeros((3, 5))
+    X[:, 0] = [c - k, c, c + k]
+    m = model.components["obj_m"](X)
+    assert abs(m[1]) < 0.05 * abs(m[2]) and m[2] == pytest.approx(-m[0], rel=0.05), m
+    assert m[2] == pytest.approx(k * truth.EI, rel=0.1)
+
+
+def test_precurved_rods_rest_curvature_is_recovered_from_1mm_camera_positions(precurved_models):
+    _, d, truth = precurved_models
+    man = load_learned(d / "camera")[1]
+    rest = man["rest_state"]
+    assert man["input"] == "positions" and rest["symmetric"], rest
+    assert rest["band_lo"] <= truth.kappa0 <= rest["band_hi"]
+    assert man["bending_odd_about"] == rest["kappa_rest"]
+
+
+def test_learned_law_is_written_as_a_table_and_figure_with_its_covered_range(precurved_models):
+    cfg, d, truth = precurved_models
+    man = load_learned(d / "auto")[1]
+    assert man["law_table"] == "laws.parquet" and (d / "auto" / "laws.png").stat().st_size > 0
+    tab = read_parquet(d / "auto" / man["law_table"])
+    m = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa")]
+    assert len(m) == cfg["camera"]["learn"]["law_table"]["n_grid"]
+    lo, hi = man["law_inputs_covered"]["obj_m"]["kappa"]
+    arrays, _ = load_model(d / "auto" / "obj_m")
+    assert (lo, hi) == (arrays["X"].min(), arrays["X"].max())
+    assert m["covered"].to_numpy().any() and (~m["covered"].to_numpy()).any()
+    # every learned model's inputs have their covered range in the manifest
+    assert set(man["law_inputs_covered"]) == set(man["models"])
+    # the nominal law beside it is the nominal rod's m = EI (kappa - kappa0), kappa0 = 0
+    assert np.allclose(m["nominal"], truth.EI * m["x"])
+
+
+def test_posterior_sd_of_a_learned_law_grows_beyond_its_covered_range(precurved_models):
+    _, d, _ = precurved_models
+    tab = read_parquet(d / "auto" / "laws.parquet")
+    m = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa")].sort_values("x")
+    inside, sd = m["covered"].to_numpy(), m["sd"].to_numpy()
+    assert np.all(np.isfinite(sd)) and np.all(sd >= 0)
+    # at both ends of the grid (half the covered width beyond it) the sd exceeds every sd inside
+    assert sd[0] > sd[inside].max() and sd[-1] > sd[inside].max(), (sd[0], sd[inside].max(), sd[-1])
