@@ -113,13 +113,13 @@ def test_manifest_records_the_grey_box_decision(noisy_models):
     assert man["position_noise_std_m_differences"] == pytest.approx(1e-3, rel=0.15)
     model, _ = load_learned(d / "auto")
     assert isinstance(model.components["obj_n1"], NominalLaw)
-    # the bending law m(kappa), odd about the rest curvature estimated from the data (the
-    # straight rod's 0 within its band): bends both ways alike, although the 85 deg record
-    # curves the rod mostly one way
+    # the bending law m(kappa), odd about its rest curvature: the estimate's band contains the
+    # straight rod's nominal 0, so the samples are mirrored about the nominal 0; it bends both ways
+    # alike, although the 85 deg record curves the rod mostly one way
     rest = man["rest_state"]
     assert man["bending_inputs"] == ["kappa"] and man["bending_symmetry"] == "auto" and rest["symmetric"]
-    assert man["bending_odd_about"] == rest["kappa_rest"] and rest["band_lo"] <= 0.0 <= rest["band_hi"], rest
-    c = rest["kappa_rest"]
+    assert rest["band_lo"] <= 0.0 <= rest["band_hi"] and man["bending_odd_about"] == 0.0, rest
+    c = man["bending_odd_about"]
     arrays, _ = load_model(d / "auto" / "obj_m")
     k = 0.5 * float(np.abs(arrays["X"] - c).max())  # inside the (mirrored) training range
     X = np.zeros((2, 5))

@@ -39,7 +39,8 @@ def grey_box(tmp_path_factory, smoke_training_run) -> tuple[dict, Path]:
     learn(d / "cam.parquet", d / "model", cfg, "objective", "gp")
     man = read_manifest(d / "model")
     assert man["nominal_laws"] == ["n1", "n2"] and man["rest_state"]["symmetric"]
-    assert man["bending_odd_about"] == man["rest_state"]["kappa_rest"]
+    rest = man["rest_state"]  # the band contains the straight rod's 0: mirrored about the nominal 0
+    assert rest["band_lo"] <= 0.0 <= rest["band_hi"] and man["bending_odd_about"] == 0.0
     return cfg, d
 
 
@@ -66,8 +67,9 @@ def test_learned_rod_with_zero_variance_samples_reproduces_the_mean_rollout(grey
     np.testing.assert_array_equal(t, ref.t)
     assert np.abs(ref.q[-1] - ref.q[0]).max() > 1e-3  # the rod moved
     for s in range(S):
-        # the tables' interpolation in another order of operations: round-off only
-        np.testing.assert_allclose(q[s], ref.q, rtol=0, atol=1e-12)
+        # the tables' interpolation in another order of operations: round-off only, accumulated
+        # over the rollout's steps (measured up to 1.1e-12 rad; any model difference is > 1e-6)
+        np.testing.assert_allclose(q[s], ref.q, rtol=0, atol=1e-10)
         np.testing.assert_allclose(p[s], ref.p, rtol=1e-7, atol=1e-9 * np.abs(ref.p).max())
 
 
