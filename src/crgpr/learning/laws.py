@@ -15,7 +15,9 @@ rest curvature and the symmetry are decided from the samples (kappa_i, m_i) of t
 * decision by held-out time blocks: the samples (time-major rows, as ``training_data`` returns
   them) are cut into ``blocks`` contiguous blocks; each law is fitted without one block and
   predicts it; the odd law is used (and the samples mirrored about its c) unless the general
-  law's held-out mean squared error is smaller. Contiguous blocks, not single samples: the
+  law predicts the held-out blocks consistently better: the mean over blocks of
+  log(odd error / general error) above 1.96 standard errors (blocks as independent units): the
+  simpler law is kept where the data cannot tell the two apart. Contiguous blocks, not single samples: the
   samples of one trajectory are correlated in time, so a per-sample criterion (BIC) would take
   any small asymmetry of one record for a law.
 * the band of c: the delete-a-block jackknife over the same blocks, c +- 1.96 se (95 %).
@@ -45,6 +47,8 @@ class RestState:
     se: float  # jackknife standard error of c [1/m]
     heldout_mse_odd: float  # held-out-block mean squared error of the odd law [(N m)^2]
     heldout_mse_general: float  # ... of the general polynomial [(N m)^2]
+    heldout_log_ratio: float  # mean over blocks of log(odd / general held-out squared error) [-]
+    heldout_log_ratio_se: float  # its standard error over the blocks [-]
     symmetric: bool  # the odd law is used: samples mirrored about kappa_rest
     degree: int
     blocks: int
@@ -106,19 +110,27 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> Re
     scale = float(kappa.std()) or 1.0
     c, _ = _odd_fit(kappa, m, degree, scale)
     edges = np.linspace(0, kappa.size, blocks + 1).astype(int)
-    cs, e_odd, e_gen = [], 0.0, 0.0
+    cs, diff, e_odd, e_gen = [], [], 0.0, 0.0
     for b in range(blocks):
         test = np.zeros(kappa.size, dtype=bool)
         test[edges[b]:edges[b + 1]] = True
         kt, mt = kappa[~test], m[~test]
         cb, ab = _odd_fit(kt, mt, degree, scale)
         cs.append(cb)
-        e_odd += float(np.sum((m[test] - _odd_predict(kappa[test], cb, ab, degree, scale)) ** 2))
+        eo = float(np.sum((m[test] - _odd_predict(kappa[test], cb, ab, degree, scale)) ** 2))
         g, _ = _lstsq(_general_design(kt, center, scale, degree), mt)
-        e_gen += float(np.sum((m[test] - _general_design(kappa[test], center, scale, degree) @ g) ** 2))
+        eg = float(np.sum((m[test] - _general_design(kappa[test], center, scale, degree) @ g) ** 2))
+        e_odd, e_gen = e_odd + eo, e_gen + eg
+        diff.append(math.log(max(eo, 1e-300) / max(eg, 1e-300)))
     cs_a = np.array(cs)
     se = math.sqrt((blocks - 1) / blocks * float(np.sum((cs_a - cs_a.mean()) ** 2)))
     mse_odd, mse_gen = e_odd / kappa.size, e_gen / kappa.size
+    # the general law only where it predicts the held-out blocks consistently better: the mean
+    # over blocks of log(odd error / general error) above 1.96 of its standard error (blocks as
+    # independent units; the log ratio is scale-free, so blocks of larger curvature do not dominate)
+    d = np.array(diff)
+    ratio_se = float(np.std(d, ddof=1)) / math.sqrt(blocks)
     return RestState(kappa_rest=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se, se=se,
                      heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
-                     symmetric=bool(mse_odd <= mse_gen), degree=int(degree), blocks=int(blocks))
+                     heldout_log_ratio=float(d.mean()), heldout_log_ratio_se=ratio_se,
+                     symmetric=bool(d.mean() <= Z95 * ratio_se), degree=int(degree), blocks=int(blocks))
