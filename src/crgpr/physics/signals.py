@@ -25,6 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
+from crgpr.io import read_table
 from crgpr.physics.ports import CHANNELS
 
 
@@ -114,10 +115,9 @@ def read_inputs(path: str | Path, t_end: float | None = None, t_start: float = 0
     """An input file (module docstring), checked; ``[t_start, t_end]`` must lie in its t range."""
     path = Path(path)
     try:
-        df = pd.read_csv(path) if path.suffix.lower() == ".csv" else pd.read_parquet(path)
-    except Exception as exc:  # noqa: BLE001 - any reader error is the user's file
-        raise InputsError(f"{path}: cannot read the inputs file ({type(exc).__name__}: "
-                          f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+        df = read_table(path)  # Parquet or CSV by extension, one-line errors
+    except (ValueError, FileNotFoundError) as exc:
+        raise InputsError(str(exc).splitlines()[0]) from None
     if "t" not in df.columns:
         raise InputsError(f"{path}: no column 't' (time [s])")
     unknown = [str(c) for c in df.columns if c != "t" and c not in CHANNELS]
