@@ -72,8 +72,13 @@ def gravity(params: RodParams) -> np.ndarray:
     return np.array([0.0, -params.rhoA * params.g, 0.0])
 
 
+def base_angle(cfg: dict[str, Any]) -> float:
+    """The clamp's angle of the controlled rod [rad] (``control.base_angle_deg``)."""
+    return math.radians(float(cfg["control"]["base_angle_deg"]))
+
+
 def base_rod(cfg: dict[str, Any], params: RodParams) -> np.ndarray:
-    return straight_rod(math.radians(float(cfg["control"]["base_angle_deg"])), params)
+    return straight_rod(base_angle(cfg), params)
 
 
 def rest_at(params: RodParams, cfg: dict[str, Any], xy: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -181,7 +186,7 @@ def _cli(a: argparse.Namespace) -> None:
     write_policy(policy, a.out, extra)
     if a.simulate:
         ports = Ports(float(man["ports"]["tendon_offset_m"])) if man.get("ports") else ports_from_config(cfg)
-        plant = simulator_plant(plant_params, hold_settings(cfg, settings.dt), ports)
+        plant = simulator_plant(plant_params, hold_settings(cfg, settings.dt), ports, base_angle(cfg))
         q0 = base_rod(cfg, plant_params)
         run = run_closed_loop(policy, plant, q0, np.zeros_like(q0), float(cfg["control"]["control_rate_hz"]),
                               t_end, 10**9)
@@ -247,7 +252,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
     nan = float("nan")
     for plant_name in ("ground_truth", "fine_grid"):
         params, dt = plant_for(plant_name, cfg)
-        plant = simulator_plant(params, hold_settings(cfg, dt), ports)
+        plant = simulator_plant(params, hold_settings(cfg, dt), ports, base_angle(cfg))
         q_start, _ = rest_at(params, cfg, tuple(s["start_xy"]))
         q_path, _ = rest_at(params, cfg, (float(xy[0, 0]), float(xy[0, 1])))
         starts = {"rest": q_start, "released": base_rod(cfg, params)}

@@ -41,11 +41,14 @@ def _held(u: dict[str, float]) -> SignalInputs:
     return SignalInputs({c: {"kind": "constant", "value": float(v)} for c, v in u.items()}, "held")
 
 
-def simulator_plant(params: RodParams, settings: SimSettings, ports: Ports) -> Plant:
+def simulator_plant(params: RodParams, settings: SimSettings, ports: Ports, theta_base: float) -> Plant:
     """The ground-truth simulator over one hold interval (``settings.t_end``, step ``settings.dt``):
     the compiled kernel (``integrator.run_rod``) as ``physics.simulate`` calls it, the held
-    inputs at every step, the velocities as the plant's momentum variable."""
+    inputs at every step, the velocities as the plant's momentum variable. ``theta_base`` [rad]:
+    the clamp's angle, the base spring's rest angle for the whole closed-loop run (as
+    ``simulate`` takes the initial base angle), not the base angle at each hold."""
     m_t, m_r = masses(params)
+    rod_args = rod_kernel_args(params, float(theta_base))
     lam_t, lam_r, k_quad = dissipation_coefficients(params)
     free = free_mask(params)
     kv = kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free[:, 2], 0.5 * settings.dt)
@@ -56,7 +59,7 @@ def simulator_plant(params: RodParams, settings: SimSettings, ports: Ports) -> P
         for c, x in u.items():
             uu[:, CHANNELS.index(c)] = x
         out = run_rod(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, -m_t * params.g,
-                      rod_kernel_args(params, float(q[0, 2])), settings.dt, n, n, length=params.L0, kv=kv,
+                      rod_args, settings.dt, n, n, length=params.L0, kv=kv,
                       scheme=settings.scheme, u=uu, tendon_offset=ports.tendon_offset_m)
         return out.q[-1], out.v[-1], float(out.input_work[-1])
     return Plant(step, lambda v: v, lambda v: v)
