@@ -227,10 +227,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
         Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
         rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
-        # mirrored about the estimate only where its band excludes the nominal kappa0: where the data
-        # cannot tell them apart, the nominal rest state is kept (it is exact for a straight rod)
-        nominal_in_band = rest.band_lo <= float(params.kappa0) <= rest.band_hi
-        odd = None if not rest.symmetric else float(params.kappa0) if nominal_in_band else rest.kappa_rest
+        odd = rest.mirror_about(float(params.kappa0))
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")

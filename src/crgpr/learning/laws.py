@@ -56,6 +56,14 @@ class RestState:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def mirror_about(self, kappa0_nominal: float) -> float | None:
+        """The curvature the law's samples are mirrored about: none for a law that is not odd;
+        the nominal kappa0 where the estimate's band contains it (the data cannot tell them
+        apart, and the nominal one is exact for the declared rod); else the estimate."""
+        if not self.symmetric:
+            return None
+        return kappa0_nominal if self.band_lo <= kappa0_nominal <= self.band_hi else self.kappa_rest
+
 
 def _odd_design(u: np.ndarray, degree: int) -> np.ndarray:
     return np.stack([u**k for k in range(1, degree + 1, 2)], axis=-1)
