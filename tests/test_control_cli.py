@@ -100,3 +100,34 @@ def test_a_point_and_a_path_together_are_refused(models, tmp_path, capsys):
                  str(tmp_path / "p.csv"), "--out", str(tmp_path / "x.json"), "--config", str(SMOKE)]) == 2
     assert "or --path" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists()
+
+
+def _posterior_row(models, cfg, start_xy):
+    from crgpr.commands.control import plant_for, posterior_rows, rest_at
+    from crgpr.commands.learn import read_manifest
+
+    params, _ = plant_for("ground_truth", cfg)
+    q0, _ = rest_at(params, cfg, start_xy)
+    (row,) = posterior_rows(cfg, str(models), read_manifest(models), ports_from_config(cfg),
+                            (0.25, 0.1, None), {"ground_truth": {"rest": q0}})
+    return row
+
+
+def test_every_posterior_design_converges_from_near_a_well_posed_target(models):
+    """Each of the K posterior samples' designs holds the true rod within the settling band over the
+    steady window when started at rest 1 cm from the target."""
+    cfg = load_config(SMOKE)
+    row = _posterior_row(models, cfg, (0.24, 0.1))
+    assert 0.0 <= row["converged_fraction"] <= 1.0
+    assert row["converged_fraction"] == 1.0
+    assert row["controller"] == "learned_posterior"
+    assert 0.0 <= row["steady_tip_error_spread_over_L"] < cfg["control"]["settle_band_over_L"]
+
+
+def test_no_posterior_design_within_too_tight_input_limits_is_no_convergence(models):
+    """Limits below the weight the tip must carry: no sample has a design, so none converges."""
+    cfg = load_config(SMOKE)
+    cfg["control"]["u_limits"] = {c: [-1e-3, 1e-3] for c in cfg["control"]["u_limits"]}
+    row = _posterior_row(models, cfg, (0.24, 0.1))
+    assert row["converged_fraction"] == 0.0
+    assert np.isnan(row["steady_tip_error_spread_over_L"])

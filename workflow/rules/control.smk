@@ -14,7 +14,8 @@ rule control_study:
         table=f"{RESULTS}/tables/control.csv",
         figure=f"{RESULTS}/figures/control.png",
     params:
-        cfg=cfg_params("rod", "simulation.dt_s", "simulation.scheme", "ports.tendon_offset_m", "control"),
+        cfg=cfg_params("seed", "rod", "simulation.dt_s", "simulation.scheme", "ports.tendon_offset_m", "control",
+                       "uq"),
     log:
         "logs/control/study.log",
     benchmark:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -207,7 +208,78 @@ def plant_for(kind: str, cfg: dict[str, Any]) -> tuple[RodParams, float]:
 
 COLUMNS = ("task", "target", "start", "plant", "controller", "steady_tip_error_over_L",
            "residual_oscillation_over_L", "settling_time_s",
-           "overshoot_over_L", "peak_input", "tracking_rmse_over_L", "converged_fraction")
+           "overshoot_over_L", "peak_input", "tracking_rmse_over_L", "converged_fraction",
+           "steady_tip_error_spread_over_L")
+
+
+def posterior_components(model_dir: str | Path, man: dict[str, Any], cfg: dict[str, Any]
+                         ) -> tuple[dict[str, Any], float | None]:
+    """The components of a model directory's learned rod with its learned force laws replaced by
+    K = ``control.posterior.n_samples`` joint posterior samples each (``crgpr.uq.samples``: the
+    ``uq`` section's sampler, features and posterior scale; seed ``uq_seed(seed, name)``). The
+    momentum maps stay at their means (the design's statics do not use them); nominal laws stay."""
+    from crgpr.commands.learn import learned_components, learned_models
+    from crgpr.gp.evaluators import load_evaluator
+    from crgpr.learning.gradient_models import MOMENTUM_MODELS
+    from crgpr.uq.samples import draw_model_samples, load_gp_spec, uq_seed
+    from crgpr.uq.settings import UQSettings
+
+    K = int(cfg["control"]["posterior"]["n_samples"])
+    u = dict(cfg["uq"])
+    # K samples of the UQ path (its paper_n_samples, a reporting subset of S, does not apply)
+    settings = UQSettings.from_section({**u, "n_samples": K,
+                                        "paper_n_samples": min(K, int(u["paper_n_samples"]))})
+    d = Path(model_dir)
+    sampled = [m for m in learned_models(man) if m not in MOMENTUM_MODELS]
+
+    def load(m: str) -> Any:
+        if m not in sampled:
+            return load_evaluator(d / m)
+        spec, Z, grid = load_gp_spec(d / m, m)
+        comp, info = draw_model_samples(spec, settings, uq_seed(int(cfg["seed"]), m), Z, grid)
+        log.info("posterior samples of %s: %d in %.1f s (posterior scale %.3g)", m, K, info["seconds"],
+                 info.get("posterior_scale", float("nan")))
+        return comp
+    return learned_components(d, man, load)
+
+
+def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], ports: Ports,
+                   target: tuple[float, float, float | None], starts: dict[str, dict[str, np.ndarray]]
+                   ) -> list[dict[str, Any]]:
+    """Rows ``learned_posterior`` of the study: the regulation controller designed on each of K
+    posterior samples of the learned model, run on the ground-truth plant from each start of
+    ``control.posterior.starts`` (``starts``: plant -> start -> q0)."""
+    from crgpr.control.posterior import posterior_regulation, sample_internals
+
+    c = cfg["control"]
+    comps, center = posterior_components(model_dir, man, cfg)
+    P = RodParams.from_dict(man["rod"])
+    internals = sample_internals(comps, man["features"], P, center)
+    lo, hi = limits(cfg)
+    L = rod_params(cfg).L0
+    band, window = float(c["settle_band_over_L"]) * L, float(c["steady_window_s"])
+    params, dt = plant_for("ground_truth", cfg)
+    plant = simulator_plant(params, hold_settings(cfg, dt), ports, base_angle(cfg))
+    rows = []
+    for start in c["posterior"]["starts"]:
+        q0 = starts["ground_truth"][start]
+        res = posterior_regulation(internals, gravity(P), base_rod(cfg, P), P.ds, target, gains(cfg),
+                                   solver(cfg), lo, hi, plant, q0, float(c["control_rate_hz"]),
+                                   float(c["t_end_s"]), band, window)
+        ok = res.converged
+        log.info("posterior designs from %s: designed %s, converged %s, steady error / L %s", start,
+                 res.designed.tolist(), ok.tolist(), (res.steady_error / L).tolist())
+        med = res.median_converged
+        rows.append({"task": "regulation", "target": f"({target[0]:g}, {target[1]:g})", "start": start,
+                     "plant": "ground_truth", "controller": "learned_posterior",
+                     "steady_tip_error_over_L": med(res.steady_error) / L,
+                     "residual_oscillation_over_L": med(res.oscillation) / L,
+                     "settling_time_s": med(res.settling), "overshoot_over_L": float("nan"),
+                     "peak_input": float("nan"), "tracking_rmse_over_L": float("nan"),
+                     "converged_fraction": res.converged_fraction,
+                     "steady_tip_error_spread_over_L": res.spread() / L})
+        log.info("%s", rows[-1])
+    return rows
 
 
 def _designs(cfg: dict[str, Any], learned: Any) -> dict[str, tuple[Any, np.ndarray, RodParams, bool]]:
@@ -247,7 +319,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
         track, _ = tracking_policy(internal, grav, q_rest, mp.ds, tp, xy, xy_rate, g, sol, lo, hi, ff)
         policies[name] = (regulation_policy(eq, target, g, lo, hi, ff), track)
         log.info("%s: u_ff at the target %s (residual %.2g N)", name, eq.u, eq.residual)
-    rows, runs = [], {}
+    rows, runs, all_starts = [], {}, {}
     band, window = float(c["settle_band_over_L"]) * L, float(c["steady_window_s"])
     nan = float("nan")
     for plant_name in ("ground_truth", "fine_grid"):
@@ -256,6 +328,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
         q_start, _ = rest_at(params, cfg, tuple(s["start_xy"]))
         q_path, _ = rest_at(params, cfg, (float(xy[0, 0]), float(xy[0, 1])))
         starts = {"rest": q_start, "released": base_rod(cfg, params)}
+        all_starts[plant_name] = starts
         for name, (reg, track) in policies.items():
             for start, q0 in starts.items():
                 run = run_closed_loop(reg, plant, q0, np.zeros_like(q0), rate, t_end, keep)
@@ -268,7 +341,8 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                              "settling_time_s": metrics.settling_time(run, band),
                              "overshoot_over_L": metrics.overshoot(run) / L,
                              "peak_input": metrics.peak_force(run),
-                             "tracking_rmse_over_L": nan, "converged_fraction": nan})
+                             "tracking_rmse_over_L": nan, "converged_fraction": nan,
+                             "steady_tip_error_spread_over_L": nan})
                 log.info("%s", rows[-1])
             run = run_closed_loop(track, plant, q_path, np.zeros_like(q_path), rate, t_end, keep)
             runs[("tracking", plant_name, name, "rest")] = run
@@ -278,7 +352,10 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                          "residual_oscillation_over_L": nan, "settling_time_s": nan,
                          "overshoot_over_L": nan, "peak_input": metrics.peak_force(run),
                          "tracking_rmse_over_L": metrics.tracking_rmse(run, float(s["tracking_skip_s"])) / L,
-                         "converged_fraction": nan})
+                         "converged_fraction": nan, "steady_tip_error_spread_over_L": nan})
             log.info("%s", rows[-1])
+    t0 = time.perf_counter()
+    rows += posterior_rows(cfg, model_dir, man, ports, target, all_starts)
+    log.info("posterior designs: %.1f s", time.perf_counter() - t0)
     write_csv(pd.DataFrame(rows, columns=list(COLUMNS)), out_csv)
     control_figure(runs, out_fig)
