@@ -209,7 +209,7 @@ def plant_for(kind: str, cfg: dict[str, Any]) -> tuple[RodParams, float]:
 COLUMNS = ("task", "target", "start", "plant", "controller", "steady_tip_error_over_L",
            "residual_oscillation_over_L", "settling_time_s",
            "overshoot_over_L", "peak_input", "tracking_rmse_over_L", "converged_fraction",
-           "steady_tip_error_spread_over_L")
+           "steady_tip_error_spread_over_L", "predicted_offset_over_L")
 
 
 def posterior_components(model_dir: str | Path, man: dict[str, Any], cfg: dict[str, Any]
@@ -249,6 +249,7 @@ def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], por
     """Rows ``learned_posterior`` of the study: the regulation controller designed on each of K
     posterior samples of the learned model, run on the ground-truth plant from each start of
     ``control.posterior.starts`` (``starts``: plant -> start -> q0)."""
+    from crgpr.control import metrics
     from crgpr.control.posterior import posterior_regulation, sample_internals
 
     c = cfg["control"]
@@ -260,6 +261,8 @@ def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], por
     band, window = float(c["settle_band_over_L"]) * L, float(c["steady_window_s"])
     params, dt = plant_for("ground_truth", cfg)
     plant = simulator_plant(params, hold_settings(cfg, dt), ports, base_angle(cfg))
+    u_hold = rest_at(params, cfg, target[:2])[1]
+    kp = gains(cfg).kp_force
     rows = []
     for start in c["posterior"]["starts"]:
         q0 = starts["ground_truth"][start]
@@ -277,7 +280,9 @@ def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], por
                      "settling_time_s": med(res.settling), "overshoot_over_L": float("nan"),
                      "peak_input": float("nan"), "tracking_rmse_over_L": float("nan"),
                      "converged_fraction": res.converged_fraction,
-                     "steady_tip_error_spread_over_L": res.spread() / L})
+                     "steady_tip_error_spread_over_L": res.spread() / L,
+                     "predicted_offset_over_L": med(np.array(
+                         [metrics.predicted_offset(u, u_hold, kp) for u in res.u_ff])) / L})
         log.info("%s", rows[-1])
     return rows
 
@@ -329,6 +334,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
         q_path, _ = rest_at(params, cfg, (float(xy[0, 0]), float(xy[0, 1])))
         starts = {"rest": q_start, "released": base_rod(cfg, params)}
         all_starts[plant_name] = starts
+        u_hold = rest_at(params, cfg, target[:2])[1]
         for name, (reg, track) in policies.items():
             for start, q0 in starts.items():
                 run = run_closed_loop(reg, plant, q0, np.zeros_like(q0), rate, t_end, keep)
@@ -342,7 +348,9 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                              "overshoot_over_L": metrics.overshoot(run) / L,
                              "peak_input": metrics.peak_force(run),
                              "tracking_rmse_over_L": nan, "converged_fraction": nan,
-                             "steady_tip_error_spread_over_L": nan})
+                             "steady_tip_error_spread_over_L": nan,
+                             "predicted_offset_over_L":
+                                 metrics.predicted_offset(reg.u_ff[0], u_hold, g.kp_force) / L})
                 log.info("%s", rows[-1])
             run = run_closed_loop(track, plant, q_path, np.zeros_like(q_path), rate, t_end, keep)
             runs[("tracking", plant_name, name, "rest")] = run
@@ -352,7 +360,8 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                          "residual_oscillation_over_L": nan, "settling_time_s": nan,
                          "overshoot_over_L": nan, "peak_input": metrics.peak_force(run),
                          "tracking_rmse_over_L": metrics.tracking_rmse(run, float(s["tracking_skip_s"])) / L,
-                         "converged_fraction": nan, "steady_tip_error_spread_over_L": nan})
+                         "converged_fraction": nan, "steady_tip_error_spread_over_L": nan,
+                         "predicted_offset_over_L": nan})
             log.info("%s", rows[-1])
     t0 = time.perf_counter()
     rows += posterior_rows(cfg, model_dir, man, ports, target, all_starts)

@@ -13,10 +13,13 @@ def tip_error(run: ClosedLoop) -> np.ndarray:
 
 
 def steady_error(run: ClosedLoop, window_s: float) -> float:
-    """Steady-state tip error [m]: the distance of the mean tip position over the last
-    ``window_s`` seconds from the target (the offset, with what still oscillates averaged out)."""
+    """Steady-state tip error [m]: the distance from the target of the Hann-weighted mean tip
+    position over the last ``window_s`` seconds (the offset, with what still oscillates averaged
+    out). A plain mean over W of a residual oscillation of period T and amplitude A is off by up
+    to A T / (pi W); the Hann taper's error falls off as (T / W)^3 once W > 2 T."""
     last = run.t >= run.t[-1] - window_s
-    return float(np.hypot(*(run.target[last, :2] - run.pose[last, :2]).mean(axis=0)))
+    w = np.hanning(int(last.sum()) + 2)[1:-1]
+    return float(np.hypot(*(w @ (run.target[last, :2] - run.pose[last, :2])) / w.sum()))
 
 
 def residual_oscillation(run: ClosedLoop, window_s: float) -> float:
@@ -43,6 +46,13 @@ def overshoot(run: ClosedLoop) -> float:
         return 0.0
     past = ((run.pose[:, :2] - run.target[:, :2]) @ (d / n))
     return float(max(0.0, past.max()))
+
+
+def predicted_offset(u_ff: np.ndarray, u_hold: np.ndarray, kp_force: float) -> float:
+    """The steady tip offset [m] the tip spring leaves for a feedforward error: |Δu| / k_p, with
+    Δu the force channels' difference between the design's u_ff and the plant's own static input
+    holding its tip at the target (the spring is far stiffer than the rod at its tip)."""
+    return float(np.hypot(*(np.asarray(u_ff)[:2] - np.asarray(u_hold)[:2])) / kp_force)
 
 
 def peak_force(run: ClosedLoop) -> float:

@@ -48,10 +48,11 @@ def sample_internals(components: Mapping[str, Any], features: str, params: RodPa
 
 @dataclass(frozen=True)
 class PosteriorRuns:
-    """Per sample: whether a design exists, whether its loop converged, and its steady tip error,
-    residual oscillation [m] and settling time [s] (nan where no design exists)."""
+    """Per sample: whether a design exists, whether its loop converged, its feedforward u_ff (K, 3),
+    steady tip error, residual oscillation [m] and settling time [s] (nan where no design exists)."""
 
     designed: np.ndarray
+    u_ff: np.ndarray
     converged: np.ndarray
     steady_error: np.ndarray
     oscillation: np.ndarray
@@ -89,16 +90,17 @@ def posterior_regulation(internals: Sequence[Callable[[np.ndarray], np.ndarray]]
     K = len(internals)
     designed, conv = np.zeros(K, bool), np.zeros(K, bool)
     err, osc, ts = (np.full(K, np.nan) for _ in range(3))
+    u_ff = np.full((K, 3), np.nan)
     for s, internal in enumerate(internals):
         try:
             eq = hold(internal, gravity, q_rest, ds, target, solver, u_min, u_max)
         except UnreachableTarget:
             continue
-        designed[s] = True
+        designed[s], u_ff[s] = True, eq.u
         run = run_closed_loop(regulation_policy(eq, target, gains, u_min, u_max), plant, q0,
                               np.zeros_like(q0), rate_hz, t_end, 10**9)
         conv[s] = converged(run, band, window_s)
         err[s] = metrics.steady_error(run, window_s)
         osc[s] = metrics.residual_oscillation(run, window_s)
         ts[s] = metrics.settling_time(run, band)
-    return PosteriorRuns(designed, conv, err, osc, ts)
+    return PosteriorRuns(designed, u_ff, conv, err, osc, ts)
