@@ -300,7 +300,8 @@ def _designs(cfg: dict[str, Any], learned: Any) -> dict[str, tuple[Any, np.ndarr
 def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: str) -> None:
     """Rule ``control_study``: regulation and tracking by the controller designed on the learned
     model, on the nominal model with E off, and plain PD, each run on the ground-truth and the
-    finer-grid simulator (``control.csv`` and its figure; docs/control.md)."""
+    finer-grid simulator, and the same design on each posterior sample of the learned model
+    (``posterior_rows``) (``control.csv`` and its figure; docs/control.md)."""
     from crgpr.commands.learn import load_learned
     from crgpr.control import metrics
     from crgpr.report.control import control_figure
