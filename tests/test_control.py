@@ -187,3 +187,33 @@ def test_a_control_rate_off_the_time_grid_is_a_config_error():
 
     with pytest.raises(ConfigError, match="control.control_rate_hz"):
         load_config(SMOKE, {"control": {"control_rate_hz": 3000.0}})
+
+
+def _tip_run(t, xy, target):
+    from types import SimpleNamespace
+
+    pose = np.column_stack([xy, np.zeros(len(t))])
+    return SimpleNamespace(t=t, pose=pose, target=np.tile([target[0], target[1], 0.0], (len(t), 1)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(offset=st.tuples(st.floats(-1e-3, 1e-3), st.floats(-1e-3, 1e-3)), amp=st.floats(0.0, 2e-3),
+       period=st.floats(0.2, 0.6), phase=st.floats(0.0, 2 * math.pi), angle=st.floats(0.0, math.pi))
+def test_steady_error_sees_the_offset_through_a_residual_oscillation(offset, amp, period, phase, angle):
+    """Tip at target + offset + a sinusoid of period T <= W / 2.5 along any direction: the
+    Hann-weighted steady error is the offset to 3 % of the amplitude (a plain mean over W can be
+    off by A T / (pi W), about 13 % here)."""
+    from crgpr.control.metrics import steady_error
+
+    t = np.arange(0.0, 3.0 + 1e-9, 5e-4)
+    osc = amp * np.sin(2 * math.pi * t / period + phase)
+    xy = np.column_stack([0.25 + offset[0] + osc * math.cos(angle), 0.1 + offset[1] + osc * math.sin(angle)])
+    err = steady_error(_tip_run(t, xy, (0.25, 0.1)), 1.5)
+    assert abs(err - math.hypot(*offset)) <= 0.03 * amp + 1e-12
+
+
+def test_predicted_offset_is_the_force_error_over_the_spring():
+    from crgpr.control.metrics import predicted_offset
+
+    assert predicted_offset(np.array([0.3, -0.4, 0.05]), np.zeros(3), 50.0) == pytest.approx(0.01, rel=1e-12)
+    assert predicted_offset(np.array([0.1, 0.2, 0.0]), np.array([0.1, 0.2, 9.0]), 60.0) == 0.0
