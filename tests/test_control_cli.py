@@ -109,7 +109,7 @@ def _posterior_row(models, cfg, start_xy):
     params, _ = plant_for("ground_truth", cfg)
     q0, _ = rest_at(params, cfg, start_xy)
     (row,) = posterior_rows(cfg, str(models), read_manifest(models), ports_from_config(cfg),
-                            (0.25, 0.1, None), {"ground_truth": {"rest": q0}})
+                            (0.25, 0.1, None), {"rest": q0})
     return row
 
 

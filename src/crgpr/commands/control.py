@@ -244,11 +244,11 @@ def posterior_components(model_dir: str | Path, man: dict[str, Any], cfg: dict[s
 
 
 def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], ports: Ports,
-                   target: tuple[float, float, float | None], starts: dict[str, dict[str, np.ndarray]]
+                   target: tuple[float, float, float | None], starts: dict[str, np.ndarray]
                    ) -> list[dict[str, Any]]:
     """Rows ``learned_posterior`` of the study: the regulation controller designed on each of K
     posterior samples of the learned model, run on the ground-truth plant from each start of
-    ``control.posterior.starts`` (``starts``: plant -> start -> q0)."""
+    ``control.posterior.starts`` (``starts``: start name -> the plant's configuration at rest)."""
     from crgpr.control import metrics
     from crgpr.control.posterior import posterior_regulation, sample_internals
 
@@ -265,7 +265,7 @@ def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], por
     kp = gains(cfg).kp_force
     rows = []
     for start in c["posterior"]["starts"]:
-        q0 = starts["ground_truth"][start]
+        q0 = starts[start]
         res = posterior_regulation(internals, gravity(P), base_rod(cfg, P), P.ds, target, gains(cfg),
                                    solver(cfg), lo, hi, plant, q0, float(c["control_rate_hz"]),
                                    float(c["t_end_s"]), band, window)
@@ -325,7 +325,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
         track, _ = tracking_policy(internal, grav, q_rest, mp.ds, tp, xy, xy_rate, g, sol, lo, hi, ff)
         policies[name] = (regulation_policy(eq, target, g, lo, hi, ff), track)
         log.info("%s: u_ff at the target %s (residual %.2g N)", name, eq.u, eq.residual)
-    rows, runs, all_starts = [], {}, {}
+    rows, runs, truth_starts = [], {}, {}
     band, window = float(c["settle_band_over_L"]) * L, float(c["steady_window_s"])
     nan = float("nan")
     for plant_name in ("ground_truth", "fine_grid"):
@@ -334,7 +334,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
         q_start, _ = rest_at(params, cfg, tuple(s["start_xy"]))
         q_path, _ = rest_at(params, cfg, (float(xy[0, 0]), float(xy[0, 1])))
         starts = {"rest": q_start, "released": base_rod(cfg, params)}
-        all_starts[plant_name] = starts
+        truth_starts = starts if plant_name == "ground_truth" else truth_starts
         u_hold = rest_at(params, cfg, target[:2])[1]
         for name, (reg, track) in policies.items():
             for start, q0 in starts.items():
@@ -365,7 +365,7 @@ def control_study(cfg: dict[str, Any], model_dir: str, out_csv: str, out_fig: st
                          "predicted_offset_over_L": nan})
             log.info("%s", rows[-1])
     t0 = time.perf_counter()
-    rows += posterior_rows(cfg, model_dir, man, ports, target, all_starts)
+    rows += posterior_rows(cfg, model_dir, man, ports, target, truth_starts)
     log.info("posterior designs: %.1f s", time.perf_counter() - t0)
     write_csv(pd.DataFrame(rows, columns=list(COLUMNS)), out_csv)
     control_figure(runs, out_fig)
