@@ -127,7 +127,7 @@ def actuated_accuracy(cfg: dict[str, Any], records: list[str], inputs: list[str]
         curves[sig]["prior"] = tr
         for m, model in learned.items():
             tr = rollout(model, theta0, st, what=f"actuated {m} model under {sig}", inputs=u, ports=ports)
-            en = learned_energy(model, tr)
+            en = learned_energy(model, tr, st.dt)
             rows.append(accuracy_row(f"cr_gpr_objective_{m}" if m == "camera" else "cr_gpr_objective", train,
                                      sig, theta0, gt, trajectory_frame(tr), params.L0,
                                      balance_residual(en["H_learned"], en["input_work"], en["dissipated"])))
