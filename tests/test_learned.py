@@ -74,7 +74,7 @@ def test_objective_model_reproduces_its_training_trajectory(trained):
     assert np.sqrt(np.mean(err**2)) < 0.02  # rad over the whole record
     tip = np.linalg.norm(roll.q[:, -1, :2] - traj.q[:, -1, :2], axis=-1)
     assert tip.max() < 0.02 * P.L0
-    en = learned_energy(model, roll)
+    en = learned_energy(model, roll, S.dt)
     assert (en["dissipation_rate"] >= 0).all()  # E(t) = H_z^T R H_z >= 0 (paper Fig. 5)
     # the learned energy balance closes to a small fraction of the energy exchanged
     assert np.abs(en["balance_residual"]).max() < 0.05 * np.ptp(en["gravity"])

@@ -118,6 +118,9 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         assert len(df) > 0, name
         assert set(cols) <= set(df.columns), (name, list(df.columns))
     assert (tables / "paper_vs_reproduction.md").read_text().startswith("# Paper vs reproduction")
+    act = pd.read_csv(tables / "actuated_accuracy.csv")
+    assert set(act["method"]) == {"cr_gpr_objective", "cr_gpr_objective_camera", "cr_gpr", "nominal_prior",
+                                  "blackbox_gp"}
     pngs = list((res / "figures").glob("*.png"))
     assert len(pngs) >= 5
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)

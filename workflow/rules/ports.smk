@@ -1,12 +1,13 @@
 # The actuated study (docs/ports.md, beyond the paper): records of the rod driven by named input
 # sequences (ports.signals), CR-GPR learned from one of them with its inputs (crgpr learn --inputs;
-# full state and 1 mm camera positions), scored under sequences it never saw against the nominal
-# physics prior with E off (results/tables/actuated_accuracy.csv, in `all`).
+# full state and 1 mm camera positions; the paper's features; the black-box GP baseline given the
+# inputs), scored under sequences it never saw against the nominal physics prior with E off
+# (results/tables/actuated_accuracy.csv, in `all`).
 
 PORTS_STUDY = config["ports"]["study"]
 PORTS_TRAIN = PORTS_STUDY["train_signal"]
 PORTS_SIGNALS = [PORTS_TRAIN] + [s for s in PORTS_STUDY["test_signals"] if s != PORTS_TRAIN]
-PORTS_MODELS = ["objective", "camera"]
+PORTS_MODELS = ["objective", "camera", "paper", "blackbox"]
 _PORTS_GRID = ("simulation.dt_s", "simulation.record_every", "simulation.scheme")  # t_end: ports.study
 _PORTS_REC = ("rod", *_PORTS_GRID, "ports.tendon_offset_m", "ports.study.theta0_deg", "ports.study.t_end_s")
 
@@ -73,7 +74,8 @@ rule actuated_learn:
                        "discovery.outlier_min_m", "discovery.geometry_tol", "gradient_models", "camera.learn",
                        "prefilter", "ports.tendon_offset_m", "ports.study.prefilter",
                        "ports.study.camera_prefilter", "ports.study.camera_n_t_out", "ports.study.n_train_max",
-                       "ports.study.n_hyper_max"),
+                       "ports.study.n_hyper_max", "ports.study.blackbox_n_train", "ports.study.blackbox_n_hyper",
+                       "baselines.blackbox_gp"),
     log:
         "logs/actuated/learn_{model}.log",
     benchmark:

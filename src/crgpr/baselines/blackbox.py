@@ -26,6 +26,13 @@ for a state whose velocity is itself learned,
 one evaluation of each GP per step (the momentum rate is reused for the next half kick),
 clamped base node held fixed.
 
+Inputs (docs/ports.md, the actuated study): a record driven by actuation inputs u(t) appends
+the input channels u(t) (``physics.ports.CHANNELS``, all of them, in that order) to every node's
+features, ``INPUT_FEATURES``; the rollout evaluates them at every step time. The black box is
+told nothing of G: where and how an input acts on the rod it must learn from the record (a
+channel the training record never drives is a constant feature it cannot learn). Without
+inputs the features and the rollout are unchanged.
+
 Divergence: the integrator's one policy (non-finite state, |dq/dt| >= ``integrator.MAX_SPEED``,
 a node farther than ``integrator.REACH`` L0 from the base). The rollout file then holds the
 trajectory up to the last plausible record and that state frozen afterwards (scored like that
@@ -51,13 +58,16 @@ from crgpr.learning import features as ft
 from crgpr.learning.prefilter import D1_COLUMNS
 from crgpr.physics.integrator import SimulationDiverged, run_verlet
 from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import CHANNELS
 from crgpr.physics.rod import STATE_NAMES, straight_rod
+from crgpr.physics.signals import Inputs
 
 log = logging.getLogger(__name__)
 
 FEATURES: tuple[str, ...] = ("theta", "theta_prev", "theta_next", "d2theta_ds2", "dx_ds", "dy_ds",
                              "p_x", "p_y", "p_theta")
 TARGETS: tuple[str, ...] = D1_COLUMNS  # dx_dt, ..., dp_theta_dt
+INPUT_FEATURES: tuple[str, ...] = tuple(f"u_{c}" for c in CHANNELS)  # appended when trained with inputs
 
 
 def blackbox_settings(cfg: dict[str, Any]) -> dict[str, Any]:
@@ -67,19 +77,26 @@ def blackbox_settings(cfg: dict[str, Any]) -> dict[str, Any]:
         raise ConfigError("config: missing section baselines.blackbox_gp") from exc
 
 
-def node_features(q: np.ndarray, p: np.ndarray, ds: float, center: float | None) -> np.ndarray:
-    """Local features (..., N, 9) of the free nodes 1..N from nodal q, p (..., N+1, 3)."""
+def node_features(q: np.ndarray, p: np.ndarray, ds: float, center: float | None,
+                  u: np.ndarray | None = None) -> np.ndarray:
+    """Local features (..., N, 9) of the free nodes 1..N from nodal q, p (..., N+1, 3); with
+    inputs u (..., n_channels) at the same time, (..., N, 9 + n_channels)."""
     geo = ft.paper_theta_features(q[..., 0], q[..., 1], q[..., 2], ds, center)
-    return np.concatenate([geo, p[..., 1:, :]], axis=-1)
+    F = np.concatenate([geo, p[..., 1:, :]], axis=-1)
+    if u is None:
+        return F
+    u = np.broadcast_to(np.asarray(u, dtype=float)[..., None, :], (*F.shape[:-1], np.shape(u)[-1]))
+    return np.concatenate([F, u], axis=-1)
 
 
-def training_set(prefiltered: pd.DataFrame, params: RodParams, theta_wrap: bool
-                 ) -> tuple[np.ndarray, np.ndarray, float | None]:
+def training_set(prefiltered: pd.DataFrame, params: RodParams, theta_wrap: bool,
+                 inputs: Inputs | None = None) -> tuple[np.ndarray, np.ndarray, float | None]:
     """Features (n, 9), dz/dt targets (n, 6) of the free nodes of a prefilter table; the angle
-    window centre (``features.theta_center``, None unless ``theta_wrap``)."""
+    window centre (``features.theta_center``, None unless ``theta_wrap``). With ``inputs``, their
+    channels at the table's times are features too (n, 9 + len(CHANNELS))."""
     cols = (*STATE_NAMES, *TARGETS)
     try:
-        _, g = frame_to_grid(prefiltered, cols, "prefilter table")
+        t, g = frame_to_grid(prefiltered, cols, "prefilter table")
     except ValueError as exc:
         raise ConfigError(str(exc)) from exc
     if g.shape[1] != params.N + 1:
@@ -88,9 +105,10 @@ def training_set(prefiltered: pd.DataFrame, params: RodParams, theta_wrap: bool
     q = np.stack([arr["x"], arr["y"], arr["theta"]], -1)
     p = np.stack([arr["p_x"], arr["p_y"], arr["p_theta"]], -1)
     center = ft.theta_center(arr["theta"]) if theta_wrap else None
-    F = node_features(q, p, params.ds, center).reshape(-1, len(FEATURES))
+    u = None if inputs is None else inputs.values(t)
+    F = node_features(q, p, params.ds, center, u)
     Y = np.stack([arr[c] for c in TARGETS], -1)[:, 1:].reshape(-1, 6)
-    return F, Y, center
+    return F.reshape(-1, F.shape[-1]), Y, center
 
 
 def fit_blackbox(F: np.ndarray, Y: np.ndarray, settings: dict[str, Any], seed: int) -> list[GP]:
@@ -116,13 +134,15 @@ def fit_blackbox(F: np.ndarray, Y: np.ndarray, settings: dict[str, Any], seed: i
 # rollout
 # --------------------------------------------------------------------------------------
 def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSettings,
-            center: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+            center: float | None = None, inputs: Inputs | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Integrate the black-box model from the straight rod at rest; (t, q, p, info).
 
     The generic form of the one integrator (``run_verlet``), with the learned velocity
     f_q(q, p) and momentum rate f_p(q, p) evaluated by the exact posterior means
-    (``KernelMean.exact``). On divergence the remaining records repeat the last plausible
-    state (see module doc).
+    (``KernelMean.exact``); a model trained with inputs sees ``inputs`` at every step time
+    (module doc). On divergence the remaining records repeat the last plausible state (see
+    module doc), and ``info`` says when and where.
     """
     means = [KernelMean.exact(gp) for gp in gps]
     q0 = straight_rod(math.radians(theta0_deg), params)
@@ -130,18 +150,25 @@ def rollout(gps: list[GP], theta0_deg: float, params: RodParams, settings: SimSe
     free = np.ones_like(q0)
     free[0] = 0.0  # the base node is held (the black box has no clamp condition of its own)
 
-    def rates(q: np.ndarray, p: np.ndarray, which: range) -> np.ndarray:
-        X = node_features(q, p, params.ds, center)
-        return np.vstack([zero, np.stack([means[k](X) for k in which], axis=1)])
-
     dt, every, n_steps = settings.dt, settings.record_every, settings.n_steps
     n_rec = n_steps // every + 1
+    u = None if inputs is None else inputs.values(np.arange(n_steps + 1) * dt)
+    step = [0]  # force evaluation j (the j-th, from 0) sees u(j dt); a velocity, the latest step's
+
+    def rates(q: np.ndarray, p: np.ndarray, which: range) -> np.ndarray:
+        X = node_features(q, p, params.ds, center, None if u is None else u[min(step[0], n_steps)])
+        return np.vstack([zero, np.stack([means[k](X) for k in which], axis=1)])
+
+    def force(q: np.ndarray, p: np.ndarray) -> np.ndarray:
+        out = rates(q, p, range(3, 6))
+        step[0] += 1
+        return out
+
     info: dict[str, Any] = {"diverged": False, "t_diverged": None, "node_diverged": None,
                             "step_diverged": None}
     try:
-        out = run_verlet(q0, np.zeros_like(q0), lambda q, p: rates(q, p, range(3, 6)),
-                         lambda q, p: rates(q, p, range(0, 3)), free, dt, n_steps, every,
-                         length=params.L0, what=f"black-box GP rollout at {theta0_deg:g} deg")
+        out = run_verlet(q0, np.zeros_like(q0), force, lambda q, p: rates(q, p, range(0, 3)), free, dt,
+                         n_steps, every, length=params.L0, what=f"black-box GP rollout at {theta0_deg:g} deg")
         return out.t, out.q, out.v, info
     except SimulationDiverged as exc:
         info.update(diverged=True, t_diverged=exc.t, node_diverged=exc.node, step_diverged=exc.step)
@@ -157,5 +184,5 @@ def load_models(model_dir: str | Path) -> list[GP]:
     return [GP.load(Path(model_dir) / name) for name in TARGETS]
 
 
-__all__ = ["FEATURES", "TARGETS", "SimulationDiverged", "fit_blackbox", "node_features", "rollout",
-           "training_set"]
+__all__ = ["FEATURES", "INPUT_FEATURES", "TARGETS", "SimulationDiverged", "fit_blackbox", "node_features",
+           "rollout", "training_set"]

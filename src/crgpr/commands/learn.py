@@ -426,7 +426,7 @@ def rollout_models(cfg: dict[str, Any], model_dir: str | Path, theta0_deg: float
             "ports": None if ports is None else ports.to_dict()}
     write_parquet(trajectory_frame(traj), out, meta)
     if energy_out is not None:
-        write_parquet(learned_energy(model, traj), energy_out, {**meta, "kind": "rollout_energy"})
+        write_parquet(learned_energy(model, traj, st.dt), energy_out, {**meta, "kind": "rollout_energy"})
     return traj
 
 

@@ -4,14 +4,19 @@
 Records of the rod driven by the named input sequences of ``ports.signals`` (released straight
 at rest at ``ports.study.theta0_deg``); the models learn from the training sequence's record
 with its inputs (``crgpr learn --inputs``): ``objective`` from the full state, ``camera`` from
-camera positions; ``actuated_accuracy`` rolls every model out under every sequence (the learned
-rollout with the simulator's G, ``learning.learned.rollout``) and scores it against the record,
-next to the nominal physics prior with E off by ``ports.study.prior_E_factor``.
+camera positions, ``paper`` (the paper's features, eqs. (14)-(16)) from the full state, and
+``blackbox`` (the black-box GP baseline, ``baselines.blackbox``, with the input channels among
+its features) from the full state. ``actuated_accuracy`` rolls every model out under every
+sequence (the learned rollout with the simulator's G, ``learning.learned.rollout``) and scores
+it against the record, next to the nominal physics prior with E off by
+``ports.study.prior_E_factor``. A rollout that diverges is a row with NaN errors and a logged
+reason.
 """
 
 from __future__ import annotations
 
 import copy
+import json
 import logging
 from pathlib import Path
 from typing import Any
@@ -19,20 +24,27 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crgpr.baselines import blackbox
 from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn, load_learned
 from crgpr.config import rod_params
-from crgpr.io import read_parquet, write_csv, write_parquet
+from crgpr.io import atomic_dir, read_parquet, write_csv, write_json, write_parquet
 from crgpr.learning.learned import learned_energy, rollout
+from crgpr.learning.prefilter import fd_prefilter
+from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import SimSettings
 from crgpr.physics.ports import ports_from_config
 from crgpr.physics.signals import SignalInputs, inputs_frame, read_inputs
-from crgpr.physics.simulate import energy_frame, simulate, trajectory_frame, trajectory_from_frame
-from crgpr.report.actuated import COLUMNS, accuracy_row, actuated_figure, balance_residual
+from crgpr.physics.simulate import Trajectory, energy_frame, simulate, trajectory_frame, trajectory_from_frame
+from crgpr.report.actuated import COLUMNS, accuracy_row, actuated_figure, balance_residual, diverged_row
+from crgpr.seeds import name_seed
 
 log = logging.getLogger(__name__)
 
-MODELS: tuple[str, ...] = ("objective", "camera")
+MODELS: tuple[str, ...] = ("objective", "camera", "paper", "blackbox")
+METHODS: dict[str, str] = {"objective": "cr_gpr_objective", "camera": "cr_gpr_objective_camera",
+                           "paper": "cr_gpr", "blackbox": "blackbox_gp"}
+PRIOR = "nominal_prior"  # the nominal rod with E x ports.study.prior_E_factor
 
 
 def study_settings(cfg: dict[str, Any]) -> SimSettings:
@@ -85,20 +97,62 @@ def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
 
 
 def actuated_learn(cfg: dict[str, Any], model: str, measured: str, inputs: str, out_dir: str) -> None:
-    """Rule ``actuated_learn``: ``crgpr learn --inputs`` (objective features) on the training record
-    (``objective``: the full state, prefilter ``ports.study.prefilter``; ``camera``: the camera
-    positions, prefilter ``ports.study.camera_prefilter``)."""
+    """Rule ``actuated_learn``: ``crgpr learn --inputs`` on the training record (``objective``:
+    objective features from the full state, prefilter ``ports.study.prefilter``; ``camera``: the
+    same from the camera positions, prefilter ``ports.study.camera_prefilter``; ``paper``: the
+    paper's features from the full state), or the black box (``blackbox``: ``actuated_blackbox``)."""
+    if model == "blackbox":
+        actuated_blackbox(cfg, measured, inputs, out_dir)
+        return
     study = cfg["ports"]["study"]
-    prefilter = study["prefilter"] if model == "objective" else study["camera_prefilter"]
+    prefilter = study["camera_prefilter"] if model == "camera" else study["prefilter"]
     src = Path(measured)
-    if model == "objective":  # the record as a full-state file (t, node, x, y, theta, p_x, p_y, p_theta)
+    full = model != "camera"
+    if full:  # the record as a full-state file (t, node, x, y, theta, p_x, p_y, p_theta)
         src = Path(out_dir).with_name(Path(out_dir).name + "_full.parquet")
         write_parquet(read_parquet(measured).drop(columns=["theta0_deg", "s"]), src)
     try:
-        learn(src, out_dir, learn_config(cfg), "objective", prefilter, inputs)
+        features = "paper" if model == "paper" else "objective"
+        learn(src, out_dir, learn_config(cfg), features, prefilter, inputs)
     finally:
-        if model == "objective":
+        if full:
             src.unlink(missing_ok=True)
+
+
+def actuated_blackbox(cfg: dict[str, Any], measured: str, inputs: str, out_dir: str) -> None:
+    """The black-box GP baseline with inputs (``baselines.blackbox``): six GPs from the state and
+    u(t) to the full-state record's fd derivatives (``prefilter.n_t_out`` frames), capped at
+    ``ports.study.blackbox_n_train`` / ``blackbox_n_hyper`` points; saved with a ``manifest.json``."""
+    params, study = rod_params(cfg), cfg["ports"]["study"]
+    traj = trajectory_from_frame(read_parquet(measured), params)
+    table, _ = fd_prefilter(traj, int(cfg["prefilter"]["n_t_out"]))
+    u = read_inputs(inputs, float(traj.t[-1]))
+    F, Y, center = blackbox.training_set(table, params, bool(cfg["gradient_models"]["theta_wrap"]), u)
+    st = blackbox.blackbox_settings(cfg)
+    st["n_train"] = min(int(st["n_train"]), int(study["blackbox_n_train"]))
+    st["n_hyper"] = min(int(st["n_hyper"]), int(study["blackbox_n_hyper"]))
+    seed = name_seed(int(cfg["seed"]), "actuated_blackbox")
+    gps = blackbox.fit_blackbox(F, Y, st, seed)
+    with atomic_dir(out_dir) as tmp:
+        for name, gp in zip(blackbox.TARGETS, gps, strict=True):
+            gp.save(tmp / name, {"features": [*blackbox.FEATURES, *blackbox.INPUT_FEATURES], "target": name,
+                                 "seed": seed, "theta_center": center})
+        write_json({"kind": "blackbox_gp", "features": [*blackbox.FEATURES, *blackbox.INPUT_FEATURES],
+                    "source": str(measured),
+                    "inputs": u.describe(), "seed": seed, "theta_center": center, "settings": st},
+                   tmp / "manifest.json")
+
+
+def _blackbox_rollout(model_dir: str, theta0: float, params: Any, st: SimSettings, u: Any
+                      ) -> tuple[Trajectory | None, str]:
+    """The black box under the inputs; (trajectory, "") or (None, why) when it diverged."""
+    man = json.loads((Path(model_dir) / "manifest.json").read_text())
+    t, q, p, info = blackbox.rollout(blackbox.load_models(model_dir), theta0, params, st, man["theta_center"],
+                                     inputs=u)
+    if info["diverged"]:
+        return None, (f"left the physical range at t = {info['t_diverged']:.4g} s "
+                      f"(node {info['node_diverged']})")
+    return Trajectory(theta0, t, q, p, params), ""
 
 
 def actuated_accuracy(cfg: dict[str, Any], records: list[str], inputs: list[str], signals: list[str],
@@ -112,7 +166,8 @@ def actuated_accuracy(cfg: dict[str, Any], records: list[str], inputs: list[str]
     theta0 = float(study["theta0_deg"])
     train = str(study["train_signal"])
     prior = params.replace(E=params.E * float(study["prior_E_factor"]))
-    learned = {m: load_learned(d)[0] for m, d in zip(models, model_dirs, strict=True)}
+    dirs = dict(zip(models, model_dirs, strict=True))
+    learned = {m: load_learned(d)[0] for m, d in dirs.items() if m != "blackbox"}
     rows, curves = [], {}
     for sig, rec, upath in zip(signals, records, inputs, strict=True):
         gt = read_parquet(rec)
@@ -121,18 +176,30 @@ def actuated_accuracy(cfg: dict[str, Any], records: list[str], inputs: list[str]
         curves[sig] = {"truth": truth}
         tr = simulate(theta0, prior, st, inputs=u, ports=ports)
         en = energy_frame(tr)
-        rows.append(accuracy_row(f"nominal_prior_E{float(study['prior_E_factor']):g}", train, sig, theta0, gt,
-                                 trajectory_frame(tr), params.L0,
+        rows.append(accuracy_row(PRIOR, train, sig, theta0, gt, trajectory_frame(tr), params.L0,
                                  balance_residual(en["H"], en["input_work"], en["dissipated"])))
-        curves[sig]["prior"] = tr
-        for m, model in learned.items():
-            tr = rollout(model, theta0, st, what=f"actuated {m} model under {sig}", inputs=u, ports=ports)
-            en = learned_energy(model, tr)
-            rows.append(accuracy_row(f"cr_gpr_objective_{m}" if m == "camera" else "cr_gpr_objective", train,
-                                     sig, theta0, gt, trajectory_frame(tr), params.L0,
-                                     balance_residual(en["H_learned"], en["input_work"], en["dissipated"])))
-            curves[sig][m] = tr
-            log.info("%s under %s: tip RMSE / L = %.3g", m, sig, rows[-1]["tip_rmse_over_L"])
+        curves[sig][PRIOR] = tr
+        for m in models:
+            method = METHODS[m]
+            if m == "blackbox":  # no H: no energy balance
+                tr, why = _blackbox_rollout(dirs[m], theta0, params, st, u)
+                res = float("nan")
+            else:
+                try:
+                    tr, why = rollout(learned[m], theta0, st, what=f"actuated {m} model under {sig}",
+                                      inputs=u, ports=ports), ""
+                except SimulationDiverged as exc:
+                    tr, why = None, str(exc)
+                if tr is not None:
+                    en = learned_energy(learned[m], tr, st.dt)
+                    res = balance_residual(en["H_learned"], en["input_work"], en["dissipated"])
+            if tr is None:
+                log.warning("%s under %s diverged: %s", method, sig, why)
+                rows.append(diverged_row(method, train, sig, theta0))
+                continue
+            rows.append(accuracy_row(method, train, sig, theta0, gt, trajectory_frame(tr), params.L0, res))
+            curves[sig][method] = tr
+            log.info("%s under %s: tip RMSE / L = %.3g", method, sig, rows[-1]["tip_rmse_over_L"])
     table = pd.DataFrame(rows, columns=list(COLUMNS))
     write_csv(table, out_csv)
     actuated_figure(curves, out_fig)

@@ -19,11 +19,16 @@ the exact posterior mean over all n points with truncated kernel sums, or the DT
 paper_table2``, models in ``results/models/{prefilter}_paper_hyp``).
 
 Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
-dissipated power, paper Fig. 5), and the learned stored energy by the path integral
-H_hat(t) = int H_z_hat . dz (trapezoid over the recorded samples) plus the gravity
-potential; the balance residual H_hat(t) + U_g(t) - H_hat(0) - U_g(0) + int_0^t E measures how
-far the learned force field is from a gradient field plus the time discretisation (an actuated
-rollout subtracts the port work int y^T u dt, ``input_work``, as well).
+dissipated power, paper Fig. 5). The learned force field -H_q_hat need not be a gradient (the
+GPs are independent), so the learned stored energy is the path integral along the rollout,
+H_hat(t) = int H_z_hat . dz, which obeys dH_hat/dt = -E + y^T u exactly because J is skew
+(eq. (7)). ``learned_energy`` books it with the integrator's own steps: the work of -H_q_hat +
+gravity along every drift (``Integration.force_work``), the kinetic energy int_0^p H_p_hat as a
+function of the state, less the scheme's half-step term (h^2 / 2) sum_i w_i ds f . s F (f the
+force, F = f + G u, s = dH_p/dp, h = dt/2; what makes the kick-drift-kick update conserve it).
+With the damping booked exactly (``run_hamiltonian``), the balance residual
+H_hat(t) - H_hat(0) + dissipated(t) - input_work(t) is integrator round-off for an affine
+H_p (the tables' pieces), whatever the force field.
 """
 
 from __future__ import annotations
@@ -190,29 +195,64 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
                           model.wds, what, velocity_slope=model.velocity_slope, port=port)
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
-                      u=None if inputs is None else u[::settings.record_every], ports=ports)
+                      u=None if inputs is None else u[::settings.record_every], ports=ports,
+                      force_work=out.force_work)
 
 
-def learned_energy(model: LearnedRod, traj: Trajectory) -> pd.DataFrame:
-    """Dissipated power E(t) = H_z^T R H_z of the learned model and its energy balance (see module doc)."""
+def antiderivative(comp: Component, x: np.ndarray) -> np.ndarray:
+    """int_0^x comp(s) ds elementwise: exact for a 1-D table (``tx``, ``ty``: linear
+    interpolation, 0 outside the grid), an 8-point Gauss-Legendre rule otherwise."""
+    x = np.asarray(x, dtype=float)
+    if hasattr(comp, "tx"):
+        tx, ty = comp.tx, comp.ty
+        F = np.concatenate([[0.0], np.cumsum(0.5 * (ty[1:] + ty[:-1]) * np.diff(tx))])
+        slope = np.diff(ty) / np.diff(tx)
+
+        def prim(v: np.ndarray) -> np.ndarray:
+            vc = np.clip(v, tx[0], tx[-1])
+            i = np.clip(np.searchsorted(tx, vc, side="right") - 1, 0, tx.size - 2)
+            d = vc - tx[i]
+            return F[i] + d * (ty[i] + 0.5 * d * slope[i])
+
+        return prim(x) - prim(np.zeros_like(x))
+    nodes, weights = np.polynomial.legendre.leggauss(8)
+    return 0.5 * x * sum(w * comp(0.5 * x * (1.0 + n)) for n, w in zip(nodes, weights, strict=True))
+
+
+def kinetic_energy(model: LearnedRod, p: np.ndarray) -> np.ndarray:
+    """The learned kinetic energy sum_i w_i ds sum_k int_0^p_ik H_p,k (..., N+1, 3) -> (...)."""
+    free = free_mask(model.params)
+    K = np.stack([antiderivative(model.hp[k], p[..., k]) for k in range(3)], axis=-1)
+    return (model.wds[:, None] * K * free).sum(axis=(-2, -1))
+
+
+def learned_energy(model: LearnedRod, traj: Trajectory, dt: float) -> pd.DataFrame:
+    """Dissipated power E(t) = H_z^T R H_z of the learned model and its energy balance (module
+    doc): ``H_learned`` = the path energy of the drifts (minus ``traj.force_work``) + the
+    kinetic energy - the half-step term; ``dissipated`` and ``input_work`` are the integrator's
+    bookings; ``balance_residual`` = H_learned(t) - H_learned(0) + dissipated - input_work.
+    ``dt``: the rollout's step [s]."""
+    if traj.force_work is None:
+        raise ValueError("learned_energy needs the rollout's force work (learning.learned.rollout)")
     P = model.params
     free = free_mask(P)
-    hz = np.array([model.hz(q, p) for q, p in zip(traj.q, traj.p, strict=True)])  # (n_t, N+1, 6)
-    z = traj.z
-    hp = hz[..., 3:] * free
-    rate = P.zeta * (model.wds[:, None] * hp**2).sum(axis=(1, 2))
-    w6 = np.concatenate([model.wds[:, None] * free, model.wds[:, None] * free], axis=1)
-    dz = np.diff(z, axis=0)
-    dH = (0.5 * (hz[1:] + hz[:-1]) * dz * w6).sum(axis=(1, 2))
-    H_path = np.concatenate([[0.0], np.cumsum(dH)])
-    U_g = P.rhoA * P.g * (model.wds * traj.q[..., 1]).sum(axis=1)
-    dissipated = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(traj.t))])
-    total = H_path + U_g
+    q, p = traj.q, traj.p
+    hp = model.velocity(p) * free
+    rate = P.zeta * (model.wds[:, None] * hp**2).sum(axis=(-2, -1))
+    f = model.force(q) * free
+    F = f
+    if traj.input_work is not None:
+        F = f + traj.ports.nodal_forces(q, traj.u) / model.wds[:, None] * free
+    half = 0.125 * dt**2 * (model.wds[:, None] * f * model.velocity_slope(p) * F).sum(axis=(-2, -1))
+    kinetic = kinetic_energy(model, p) - half
+    U_g = P.rhoA * P.g * (model.wds * q[..., 1]).sum(axis=-1)
+    potential = -traj.force_work  # elastic path energy + gravity, relative to t = t0
+    total = potential + U_g[0] + kinetic
     work = np.zeros_like(total) if traj.input_work is None else traj.input_work
-    df = pd.DataFrame({"t": traj.t, "dissipation_rate": rate, "dissipated": dissipated,
-                       "H_learned": total, "stored_learned": H_path, "gravity": U_g,
-                       "balance_residual": total - total[0] + dissipated - work,
-                       "dissipated_integrator": traj.dissipated})
+    df = pd.DataFrame({"t": traj.t, "dissipation_rate": rate, "dissipated": traj.dissipated,
+                       "H_learned": total, "stored_learned": potential - (U_g - U_g[0]),
+                       "kinetic_learned": kinetic, "gravity": U_g,
+                       "balance_residual": total - total[0] + traj.dissipated - work})
     if traj.input_work is not None:  # actuated: the port work of the integrator's kicks [J]
         df["input_work"] = traj.input_work
     return df
@@ -278,6 +318,7 @@ class MemberRun:
     q: np.ndarray
     p: np.ndarray
     dissipated: np.ndarray
+    force_work: np.ndarray
     diverged: dict[str, Any] | None = None
 
 
@@ -297,6 +338,7 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
     dt, every = settings.dt, settings.record_every
     k0, n_left = 0, settings.n_steps
     diss0 = np.zeros(B)
+    work0 = np.zeros(B)
     pieces: list[tuple[np.ndarray, Any]] = []
     div: dict[int, dict[str, Any]] = {}
     while len(alive):
@@ -308,7 +350,7 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
             part = exc.partial
             if exc.members is None or len(exc.members) == 0 or part is None or len(part.t) == 0:
                 raise
-            pieces.append((alive.copy(), part, k0, diss0[alive].copy()))
+            pieces.append((alive.copy(), part, k0, diss0[alive].copy(), work0[alive].copy()))
             bad = np.unique(exc.members[:, 0])
             for j in bad:
                 div[int(alive[j])] = {"t_s": float(exc.t) + k0 * dt, "step": int(exc.step) + k0,
@@ -317,23 +359,26 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
             r = len(part.t) - 1
             q, p = part.q[r][good], part.v[r][good]
             diss0[alive[good]] += part.dissipated[r][good]
+            work0[alive[good]] += part.force_work[r][good]
             alive = alive[good]
             k0 += r * every
             n_left -= r * every
             continue
-        pieces.append((alive.copy(), out, k0, diss0[alive].copy()))
+        pieces.append((alive.copy(), out, k0, diss0[alive].copy(), work0[alive].copy()))
         break
     runs = []
     for b in range(B):
-        mine = [(int(np.flatnonzero(mem == b)[0]), pc, k, d0) for mem, pc, k, d0 in pieces if b in mem]
+        mine = [(int(np.flatnonzero(mem == b)[0]), pc, k, d0, w0)
+                for mem, pc, k, d0, w0 in pieces if b in mem]
         # a resume record is the next piece's first: every piece but the member's last loses it
-        cuts = [len(pc.t) - 1 for _, pc, _, _ in mine[:-1]] + [len(mine[-1][1].t)]
+        cuts = [len(pc.t) - 1 for _, pc, _, _, _ in mine[:-1]] + [len(mine[-1][1].t)]
         parts = list(zip(mine, cuts, strict=True))
         runs.append(MemberRun(
-            t=np.concatenate([pc.t[:c] + k * dt for (_, pc, k, _), c in parts]),
-            q=np.concatenate([pc.q[:c, j] for (j, pc, _, _), c in parts]),
-            p=np.concatenate([pc.v[:c, j] for (j, pc, _, _), c in parts]),
-            dissipated=np.concatenate([pc.dissipated[:c, j] + d0[j] for (j, pc, _, d0), c in parts]),
+            t=np.concatenate([pc.t[:c] + k * dt for (_, pc, k, _, _), c in parts]),
+            q=np.concatenate([pc.q[:c, j] for (j, pc, _, _, _), c in parts]),
+            p=np.concatenate([pc.v[:c, j] for (j, pc, _, _, _), c in parts]),
+            dissipated=np.concatenate([pc.dissipated[:c, j] + d0[j] for (j, pc, _, d0, _), c in parts]),
+            force_work=np.concatenate([pc.force_work[:c, j] + w0[j] for (j, pc, _, _, w0), c in parts]),
             diverged=div.get(b)))
     return runs
 
@@ -370,7 +415,8 @@ def run_rollouts(cfg: dict[str, Any], method: str, angles: Sequence[float], mode
                                 "simulation": settings.to_dict(), "diverged": False,
                                 "seconds": secs / len(angles), "seconds_batch": secs,
                                 "batch_angles": [float(a) for a in angles]}
-        traj = before = Trajectory(float(angle), run.t, run.q, run.p, params, run.dissipated)
+        traj = before = Trajectory(float(angle), run.t, run.q, run.p, params, run.dissipated,
+                                   force_work=run.force_work)
         if run.diverged is not None:
             log.warning("%s at %g deg left the physical range at t = %.4g s (node %d)", method, angle,
                         run.diverged["t_s"], run.diverged["node"])
@@ -381,7 +427,8 @@ def run_rollouts(cfg: dict[str, Any], method: str, angles: Sequence[float], mode
                  f", diverged at t = {meta['t_diverged']:.4g} s" if meta["diverged"] else "")
         write_parquet(trajectory_frame(traj), out, meta)
         if energy_out is not None:
-            write_parquet(learned_energy(model, before), energy_out, {**meta, "kind": "rollout_energy"})
+            write_parquet(learned_energy(model, before, settings.dt), energy_out,
+                          {**meta, "kind": "rollout_energy"})
         trajs.append(traj)
     log.info("%s: %d angles in %.1f s", method, len(angles), secs)
     return trajs

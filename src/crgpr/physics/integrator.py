@@ -92,6 +92,10 @@ class Integration:
     # cumulative work of the actuation inputs (``physics.ports``) [J]: at every kick the port
     # impulse dotted with the mean of the pre- and post-kick velocities; None without inputs
     input_work: np.ndarray | None = None
+    # cumulative work of ``force`` along the drifts [J] (``run_verlet(book_force=True)``): per
+    # step, the trapezoid of the force at the drift's ends dotted with the displacement; None
+    # when not booked
+    force_work: np.ndarray | None = None
 
 
 @njit(cache=True)
@@ -511,6 +515,7 @@ def run_verlet(
     what: str = "rollout",
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
     port_weight: np.ndarray | None = None,
+    book_force: bool = False,
 ) -> Integration:
     """The Strang-split Stormer-Verlet scheme of the module docstring, generic form.
 
@@ -527,6 +532,9 @@ def run_verlet(
     ``physics.ports``), added to ``force``; their work, h (port force) . (mean of the pre- and
     post-kick velocities) per kick weighted per node by ``port_weight`` (N+1,) (the node's
     length w_i ds for forces per length; 1 for nodal forces), is ``Integration.input_work``.
+    ``book_force``: also book the work of ``force`` along every drift, h (f(q_n) + f(q_n+1)) .
+    dq weighted by ``port_weight`` (``Integration.force_work``; minus the potential energy for a
+    conservative force, the learned path energy otherwise).
     """
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
@@ -544,6 +552,8 @@ def run_verlet(
     diss = np.zeros(q.shape[:-2])
     work = np.zeros(q.shape[:-2])
     out_w = np.zeros((n_rec, *q.shape[:-2])) if port is not None else None
+    fwork = np.zeros(q.shape[:-2])
+    out_fw = np.zeros((n_rec, *q.shape[:-2])) if book_force else None
     pw = np.ones(q.shape[-2]) if port_weight is None else np.asarray(port_weight, dtype=float)
     pw = pw[:, None] * free
 
@@ -562,11 +572,15 @@ def run_verlet(
             p, e1 = damp(p)
         if fu is None:
             p = p + h * f * ks
-            q = q + dt * velocity(q, p) * free
+            dq = dt * velocity(q, p) * free
         else:
             p, v1 = kick(q, p, fu, None)
-            q = q + dt * v1 * free
+            dq = dt * v1 * free
+        q = q + dq
+        f0 = f
         f = force(q, p)
+        if out_fw is not None:
+            fwork += 0.5 * (pw * (f0 + f) * dq).sum(axis=(-2, -1))
         if fu is None:
             p = p + h * f * ks
         else:
@@ -581,11 +595,14 @@ def run_verlet(
             if bad.any():
                 raise _diverged(what, k, dt, bad, "", Integration(
                     t[:r], out_q[:r], out_p[:r], out_d[:r],
-                    input_work=None if out_w is None else out_w[:r]))
+                    input_work=None if out_w is None else out_w[:r],
+                    force_work=None if out_fw is None else out_fw[:r]))
             out_q[r], out_p[r], out_d[r] = q, p, diss
             if out_w is not None:
                 out_w[r] = work
-    return Integration(t, out_q, out_p, out_d, input_work=out_w)
+            if out_fw is not None:
+                out_fw[r] = fwork
+    return Integration(t, out_q, out_p, out_d, input_work=out_w, force_work=out_fw)
 
 
 def run_generic(
@@ -654,15 +671,18 @@ def run_hamiltonian(
     difference): p <- p - (1 - exp(-zeta s h)) / s * H_p(p). For the analytic
     H_p = p / (rho A) this is ``run_rod``'s exact exponential, so with the analytic H_z the
     two agree to round-off. ``v`` of the result holds the MOMENTA p per length;
-    ``dissipated`` accumulates zeta sum_i w_i ds |H_p|^2 dt (trapezoid over each damping
-    half-step; needs ``wds``). States may carry leading batch axes (..., N+1, 3) when
+    ``dissipated`` accumulates the energy each damping half-step removes, int zeta sum_i w_i ds
+    |H_p|^2 dt over the exact flow = sum_i w_i ds (H_p(p0) + H_p(p1))/2 . (p0 - p1), exact for
+    an affine H_p (a trapezoid of the rate would be off by O((zeta s h)^3), which the tip's
+    small rotational inertia makes large; needs ``wds``). The work of ``force`` (-H_q and
+    gravity) along the drifts is ``force_work`` (``run_verlet(book_force=True)``). States may
+    carry leading batch axes (..., N+1, 3) when
     ``force`` and ``velocity`` do (several initial states, or a LearnedRod of posterior
     samples); ``dissipated`` is then per member (n_rec, ...). ``port(k, q)``: G(z) u per unit
     length at step k (``physics.ports``); its work (weighted by ``wds``) is ``input_work``.
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
-    zh = zeta * h
 
     def slope(p: np.ndarray) -> np.ndarray:
         if velocity_slope is not None:
@@ -678,10 +698,12 @@ def run_hamiltonian(
         sl = slope(p) * zeta
         small = np.abs(sl * h) < 1e-12
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
-        p1 = p - fac * v0 * free
+        dp = fac * v0 * free
+        p1 = p - dp
         v1 = velocity(p1)
         last[:] = [p1, v1]
-        return p1, 0.5 * zh * (wds[:, None] * (v0 * v0 + v1 * v1) * free).sum(axis=(-2, -1))
+        return p1, 0.5 * (wds[:, None] * (v0 + v1) * dp).sum(axis=(-2, -1))
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
-                      every, damp=damp, length=length, what=what, port=port, port_weight=wds)
+                      every, damp=damp, length=length, what=what, port=port, port_weight=wds,
+                      book_force=True)

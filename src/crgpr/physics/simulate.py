@@ -51,6 +51,7 @@ class Trajectory:
     input_work: np.ndarray | None = None  # cumulative work of the actuation inputs [J]
     u: np.ndarray | None = None  # actuation inputs (n_t, n_channels) at the recorded times
     ports: Ports | None = None  # the channels' G (tendon offset)
+    force_work: np.ndarray | None = None  # a learned rollout's work of -H_q + gravity along its drifts [J]
 
     @property
     def z(self) -> np.ndarray:

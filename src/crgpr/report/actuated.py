@@ -37,6 +37,13 @@ def accuracy_row(method: str, train: str, test: str, theta0: float, gt: pd.DataF
             "energy_balance_residual": residual}
 
 
+def diverged_row(method: str, train: str, test: str, theta0: float) -> dict[str, Any]:
+    """The row of a rollout that diverged: its errors and balance are NaN."""
+    nan = float("nan")
+    return {"method": method, "train_signal": train, "test_signal": test, "theta0_deg": theta0,
+            "rmse_theta": nan, "tip_rmse_over_L": nan, "energy_balance_residual": nan}
+
+
 def actuated_figure(curves: dict[str, dict[str, Any]], out: str | Path) -> None:
     """Tip height over time under every sequence: the record (black) and each method's rollout."""
     sigs = list(curves)
