@@ -32,7 +32,7 @@ def blackbox_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary:
     params = rod_params(cfg)
     st = blackbox.blackbox_settings(cfg)
     df = read_parquet(prefiltered, required=PREFILTER_COLUMNS)
-    F, Y, center = blackbox.training_set(df, params, cfg)
+    F, Y, center = blackbox.training_set(df, params, bool(cfg["gradient_models"]["theta_wrap"]))
     seed = stage_seed(cfg["seed"], "blackbox")
     t0 = time.perf_counter()
     gps = blackbox.fit_blackbox(F, Y, st, seed)
