@@ -13,7 +13,7 @@ from crgpr.commands.learn import initial_state, learn, load_learned, read_manife
 from crgpr.config import load_config, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning import features as ft
-from crgpr.learning.learned import LearnedRod, learned_energy, rollout
+from crgpr.learning.learned import LearnedRod, learned_energy, rollout, rollout_members
 from crgpr.learning.nominal import NominalLaw
 from crgpr.learning.oracle import MomentumVelocity
 from crgpr.physics.params import SimSettings
@@ -201,3 +201,43 @@ def test_learned_port_energy_balance_is_second_order_with_the_learned_tables(act
     r1, r2 = _balance(model, ports, channel, 1e-4), _balance(model, ports, channel, 5e-5)
     assert r1 < 1e-4
     assert r2 < r1 / 2.9 or r2 < 1e-10, (r1, r2)
+
+
+def test_batched_members_under_inputs_are_each_the_single_rollout(actuated):
+    """The UQ path's batch (``rollout_members``, one rod per posterior sample) under inputs: every
+    member is the single rollout of its own model under the same inputs (the port acts on each
+    rod of the batch alike), here two members with different models."""
+    cfg, _, d = actuated
+    params, ports = rod_params(cfg), ports_from_config(cfg)
+    inputs = SignalInputs(cfg["ports"]["signals"]["train_multisine"], "train_multisine")
+    st = SimSettings(dt=1e-4, t_end=0.2, record_every=10, scheme="variational")
+    learned = load_learned(d / "with")[0]
+    models = {0: nominal_rod(params), 1: learned}
+    q0 = np.stack([rollout(nominal_rod(params), 85.0, SimSettings(dt=1e-4, t_end=0.0, record_every=1,
+                                                                   scheme="variational")).q[0]] * 2)
+
+    class Pair:
+        """Members 0 and 1: the nominal and the learned rod, stacked on a batch axis."""
+
+        def __init__(self, keys):
+            self.rods = [models[int(k)] for k in keys]
+            self.wds = learned.wds
+
+        def force(self, q):
+            return np.stack([r.force(q[i]) for i, r in enumerate(self.rods)])
+
+        def velocity(self, p):
+            return np.stack([r.velocity(p[i]) for i, r in enumerate(self.rods)])
+
+        def velocity_slope(self, p):
+            return np.stack([r.velocity_slope(p[i]) for i, r in enumerate(self.rods)])
+
+    runs = rollout_members(Pair, q0, np.array([0, 1]), params, st, "pair", inputs=inputs, ports=ports)
+    for k in (0, 1):
+        one = rollout(models[k], 85.0, st, inputs=inputs, ports=ports)
+        assert runs[k].diverged is None
+        np.testing.assert_allclose(runs[k].q, one.q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(runs[k].p, one.p, rtol=0, atol=1e-12)
+    # and the inputs act: without them the learned member moves differently
+    free = rollout_members(Pair, q0, np.array([0, 1]), params, st, "pair")
+    assert np.abs(free[1].q - runs[1].q).max() > 1e-4

@@ -111,6 +111,8 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
         "actuated_accuracy.csv": ["method", "train_signal", "test_signal", "theta0_deg", "rmse_theta",
                                   "tip_rmse_over_L", "energy_balance_residual"],
+        "actuated_uq.csv": ["method", "test_signal", "n_samples", "n_diverged", "level", "expected_coverage",
+                            "tip_coverage", "tip_band_width_mean_over_L"],
         "paper_vs_reproduction.csv": ["id", "source", "paper", "ours", "abs_diff", "rel_diff", "tolerance",
                                       "verdict"],
     }.items():
@@ -121,6 +123,10 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     act = pd.read_csv(tables / "actuated_accuracy.csv")
     assert set(act["method"]) == {"cr_gpr_objective", "cr_gpr_objective_camera", "cr_gpr", "nominal_prior",
                                   "blackbox_gp"}
+    band = pd.read_csv(tables / "actuated_uq.csv")
+    assert set(band["method"]) == {"cr_gpr_objective", "cr_gpr_objective_camera"}
+    done = band[band["n_diverged"] < band["n_samples"] - 1]
+    assert done["tip_coverage"].between(0, 1).all() and (done["tip_band_width_mean_over_L"] > 0).all()
     pngs = list((res / "figures").glob("*.png"))
     assert len(pngs) >= 5
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)

@@ -118,3 +118,39 @@ rule actuated_accuracy:
 
 
 ALL_TARGETS.extend([f"{RESULTS}/tables/actuated_accuracy.csv", f"{RESULTS}/figures/actuated_tip.png"])
+
+
+# The learned models' trajectory bands under every sequence (posterior samples of their learned
+# force laws through the one UQ path; docs/ports.md, "Uncertainty under inputs").
+PORTS_UQ_MODELS = ["objective", "camera"]
+
+
+rule actuated_uq:
+    input:
+        code=code_closure("actuated_uq.py"),
+        records=expand(f"{RESULTS}/actuated/data/{{signal}}.parquet", signal=PORTS_SIGNALS),
+        inputs=expand(f"{RESULTS}/actuated/data/{{signal}}_inputs.parquet", signal=PORTS_SIGNALS),
+        models=expand(f"{RESULTS}/actuated/models/{{model}}", model=PORTS_UQ_MODELS),
+    output:
+        table=f"{RESULTS}/tables/actuated_uq.csv",
+        figure=f"{RESULTS}/figures/actuated_uq.png",
+    params:
+        cfg=cfg_params("seed", "rod", *_PORTS_GRID, "ports.tendon_offset_m", "ports.study.theta0_deg",
+                       "ports.study.t_end_s", "ports.uq", "uq"),
+        signals=PORTS_SIGNALS,
+        models=PORTS_UQ_MODELS,
+    log:
+        "logs/actuated/uq.log",
+    benchmark:
+        "benchmarks/actuated/uq.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        ENV
+    script:
+        "../scripts/actuated_uq.py"
+
+
+ALL_TARGETS.extend([f"{RESULTS}/tables/actuated_uq.csv", f"{RESULTS}/figures/actuated_uq.png"])

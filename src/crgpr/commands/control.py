@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crgpr.commands.posterior import posterior_components
 from crgpr.config import ConfigError, cli_rod_sim, load_config, rod_params
 from crgpr.control.closed_loop import ClosedLoop, run_closed_loop, simulator_plant
 from crgpr.control.design import Gains, Solver, circle_path, hold, regulation_policy, tracking_policy
@@ -212,37 +213,6 @@ COLUMNS = ("task", "target", "start", "plant", "controller", "steady_tip_error_o
            "steady_tip_error_spread_over_L", "predicted_offset_over_L")
 
 
-def posterior_components(model_dir: str | Path, man: dict[str, Any], cfg: dict[str, Any]
-                         ) -> tuple[dict[str, Any], float | None]:
-    """The components of a model directory's learned rod with its learned force laws replaced by
-    K = ``control.posterior.n_samples`` joint posterior samples each (``crgpr.uq.samples``: the
-    ``uq`` section's sampler, features and posterior scale; seed ``uq_seed(seed, name)``). The
-    momentum maps stay at their means (the design's statics do not use them); nominal laws stay."""
-    from crgpr.commands.learn import learned_components, learned_models
-    from crgpr.gp.evaluators import load_evaluator
-    from crgpr.learning.gradient_models import MOMENTUM_MODELS
-    from crgpr.uq.samples import draw_model_samples, load_gp_spec, uq_seed
-    from crgpr.uq.settings import UQSettings
-
-    K = int(cfg["control"]["posterior"]["n_samples"])
-    u = dict(cfg["uq"])
-    # K samples of the UQ path (its paper_n_samples, a reporting subset of S, does not apply)
-    settings = UQSettings.from_section({**u, "n_samples": K,
-                                        "paper_n_samples": min(K, int(u["paper_n_samples"]))})
-    d = Path(model_dir)
-    sampled = [m for m in learned_models(man) if m not in MOMENTUM_MODELS]
-
-    def load(m: str) -> Any:
-        if m not in sampled:
-            return load_evaluator(d / m)
-        spec, Z, grid = load_gp_spec(d / m, m)
-        comp, info = draw_model_samples(spec, settings, uq_seed(int(cfg["seed"]), m), Z, grid)
-        log.info("posterior samples of %s: %d in %.1f s (posterior scale %.3g)", m, K, info["seconds"],
-                 info.get("posterior_scale", float("nan")))
-        return comp
-    return learned_components(d, man, load)
-
-
 def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], ports: Ports,
                    target: tuple[float, float, float | None], starts: dict[str, np.ndarray]
                    ) -> list[dict[str, Any]]:
@@ -253,7 +223,7 @@ def posterior_rows(cfg: dict[str, Any], model_dir: str, man: dict[str, Any], por
     from crgpr.control.posterior import posterior_regulation, sample_internals
 
     c = cfg["control"]
-    comps, center = posterior_components(model_dir, man, cfg)
+    comps, center = posterior_components(model_dir, man, cfg, int(c["posterior"]["n_samples"]))
     P = RodParams.from_dict(man["rod"])
     internals = sample_internals(comps, man["features"], P, center)
     lo, hi = limits(cfg)

@@ -18,6 +18,8 @@ from __future__ import annotations
 import copy
 import json
 import logging
+import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -26,18 +28,31 @@ import pandas as pd
 
 from crgpr.baselines import blackbox
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, load_learned
+from crgpr.commands.learn import learn, load_learned, read_manifest
+from crgpr.commands.posterior import posterior_components
 from crgpr.config import rod_params
 from crgpr.io import atomic_dir, read_parquet, write_csv, write_json, write_parquet
-from crgpr.learning.learned import learned_energy, rollout
+from crgpr.learning.learned import learned_energy, rollout, rollout_members
 from crgpr.learning.prefilter import fd_prefilter
 from crgpr.physics.integrator import SimulationDiverged
-from crgpr.physics.params import SimSettings
+from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import ports_from_config
+from crgpr.physics.rod import straight_rod
 from crgpr.physics.signals import SignalInputs, inputs_frame, read_inputs
 from crgpr.physics.simulate import Trajectory, energy_frame, simulate, trajectory_frame, trajectory_from_frame
-from crgpr.report.actuated import COLUMNS, accuracy_row, actuated_figure, balance_residual, diverged_row
+from crgpr.report.actuated import (
+    COLUMNS,
+    UQ_COLUMNS,
+    accuracy_row,
+    actuated_figure,
+    balance_residual,
+    diverged_row,
+    uq_figure,
+)
 from crgpr.seeds import name_seed
+from crgpr.uq.coverage import coverage_rows, truth_arrays
+from crgpr.uq.rollout import sampled_rod
+from crgpr.uq.samples import select_samples
 
 log = logging.getLogger(__name__)
 
@@ -203,3 +218,53 @@ def actuated_accuracy(cfg: dict[str, Any], records: list[str], inputs: list[str]
     table = pd.DataFrame(rows, columns=list(COLUMNS))
     write_csv(table, out_csv)
     actuated_figure(curves, out_fig)
+
+
+def actuated_uq(cfg: dict[str, Any], records: list[str], inputs: list[str], signals: list[str],
+                model_dirs: list[str], models: list[str], out_csv: str, out_fig: str) -> None:
+    """Rule ``actuated_uq``: the learned models' trajectory bands under every sequence through the
+    one UQ path: ``ports.uq.n_samples`` joint posterior samples of each model's learned
+    force laws (``commands.posterior``; the momentum maps at their means) rolled out as one batch
+    under the sequence's inputs (``learning.learned.rollout_members``), the band's coverage of the
+    record (``uq.coverage``, level ``ports.uq.level``): ``actuated_uq.csv`` and its figure."""
+    study = cfg["ports"]["study"]
+    st = study_settings(cfg)
+    ports = ports_from_config(cfg)
+    theta0 = float(study["theta0_deg"])
+    K, level = int(cfg["ports"]["uq"]["n_samples"]), float(cfg["ports"]["uq"]["level"])
+    L0 = rod_params(cfg).L0
+    rows, bands = [], {}
+    for m, d in zip(models, model_dirs, strict=True):
+        man = read_manifest(d)
+        comps, center = posterior_components(d, man, cfg, K)
+        P = RodParams.from_dict(man["rod"])
+        q0 = np.repeat(straight_rod(math.radians(theta0), P)[None], K, axis=0)
+
+        def model_for(keys: np.ndarray, comps: dict[str, Any] = comps, P: RodParams = P,
+                      center: float | None = center, features: str = man["features"]) -> Any:
+            return sampled_rod({k: select_samples(c, keys) for k, c in comps.items()}, features, P, center)
+
+        for sig, rec, upath in zip(signals, records, inputs, strict=True):
+            t0 = time.perf_counter()
+            runs = rollout_members(model_for, q0, np.arange(K), P, st, f"{METHODS[m]} samples under {sig}",
+                                   inputs=read_inputs(upath, st.t_end), ports=ports)
+            ok = [r for r in runs if r.diverged is None and r.t.size == runs[0].t.size]
+            for b, r in enumerate(runs):
+                if r.diverged is not None:
+                    log.warning("%s sample %d under %s diverged at t = %.4g s", METHODS[m], b, sig,
+                                r.diverged["t_s"])
+            row = {"method": METHODS[m], "test_signal": sig, "theta0_deg": theta0, "n_samples": K,
+                   "n_diverged": K - len(ok), "level": level}
+            if len(ok) >= 2:
+                arr = np.stack([r.q for r in ok])
+                g = truth_arrays(read_parquet(rec), ok[0].t, ("x", "y", "theta"))
+                cov = coverage_rows(arr, g, [level], [len(ok)])[0]
+                row.update({k: cov[k] for k in ("expected_coverage", "tip_coverage", "theta_coverage",
+                                                "theta_band_width_mean")})
+                row["tip_band_width_mean_over_L"] = cov["tip_band_width_mean"] / L0
+                bands[(METHODS[m], sig)] = (ok[0].t, arr[:, :, -1, :2], g[:, -1, :2])
+            row["seconds"] = time.perf_counter() - t0
+            rows.append(row)
+            log.info("%s", row)
+    write_csv(pd.DataFrame(rows, columns=list(UQ_COLUMNS)), out_csv)
+    uq_figure(bands, level, out_fig)

@@ -323,14 +323,30 @@ class MemberRun:
 
 
 def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarray, keys: np.ndarray,
-                    params: RodParams, settings: SimSettings, what: str) -> list[MemberRun]:
+                    params: RodParams, settings: SimSettings, what: str, inputs: Inputs | None = None,
+                    ports: Ports | None = None) -> list[MemberRun]:
     """Integrate B rods as one batch from rest at the configurations q0 (B, N+1, 3) (eq. (17),
     the ground truth's scheme, dt and boundary conditions); rod b is driven by member b of
     ``model_for(keys[alive])`` (a mean model for every rod, or posterior sample keys[b]). Rods
     are independent: each gets the numbers it gets alone. A rod that leaves the physical range
     is taken out with its records up to the last good one; the others resume from that record
-    (the scheme's full state, so bit for bit the uninterrupted run), no restart from t = 0."""
+    (the scheme's full state, so bit for bit the uninterrupted run), no restart from t = 0.
+    ``inputs`` drive the ``ports`` of every rod alike, as in ``rollout``."""
     P = params
+    u = None
+    if inputs is not None:
+        if ports is None:
+            raise ValueError("inputs need the ports (channels' G) they drive")
+        u = inputs.values(np.arange(settings.n_steps + 1) * settings.dt)
+
+    def port_from(k0: int) -> Callable[[int, np.ndarray], np.ndarray] | None:
+        if u is None:
+            return None
+        inv_wds = 1.0 / (node_weights(P.N) * P.ds)[:, None]
+
+        def port(k: int, q: np.ndarray) -> np.ndarray:
+            return ports.nodal_forces(q, np.broadcast_to(u[k0 + k], (*q.shape[:-2], u.shape[1]))) * inv_wds
+        return port
     B = q0.shape[0]
     alive = np.arange(B)
     q, p = np.array(q0, dtype=float), np.zeros_like(q0, dtype=float)
@@ -345,7 +361,8 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
         rod = model_for(keys[alive])
         try:
             out = run_hamiltonian(q, p, rod.force, rod.velocity, free_mask(P), P.zeta, dt, n_left, every,
-                                  rod.wds, what, velocity_slope=rod.velocity_slope, length=length)
+                                  rod.wds, what, velocity_slope=rod.velocity_slope, length=length,
+                                  port=port_from(k0))
         except SimulationDiverged as exc:
             part = exc.partial
             if exc.members is None or len(exc.members) == 0 or part is None or len(part.t) == 0:

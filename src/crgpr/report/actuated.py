@@ -60,3 +60,41 @@ def actuated_figure(curves: dict[str, dict[str, Any]], out: str | Path) -> None:
     with atomic_path(out, ".png") as tmp:
         fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
+
+
+UQ_COLUMNS: tuple[str, ...] = ("method", "test_signal", "theta0_deg", "n_samples", "n_diverged", "level",
+                               "expected_coverage", "tip_coverage", "theta_coverage",
+                               "tip_band_width_mean_over_L", "theta_band_width_mean", "seconds")
+
+
+def uq_figure(bands: dict[tuple[str, str], tuple[Any, Any, Any]], level: float, out: str | Path) -> None:
+    """Tip height under every sequence: the record (black) and each method's ``level`` % band of
+    its posterior-sample rollouts (``bands``: (method, signal) -> (t, tip xy of the samples
+    (S, n_t, 2), tip xy of the record (n_t, 2)))."""
+    from crgpr.uq.settings import band_percentiles
+
+    methods = sorted({m for m, _ in bands})
+    sigs = list(dict.fromkeys(s for _, s in bands))
+    fig, axes = plt.subplots(len(sigs), len(methods), figsize=(4.5 * max(len(methods), 1), 1.9 * len(sigs)),
+                             sharex=True, squeeze=False)
+    lo, hi = band_percentiles(level)
+    for i, sig in enumerate(sigs):
+        for j, m in enumerate(methods):
+            ax = axes[i, j]
+            if (m, sig) not in bands:
+                ax.set_axis_off()
+                continue
+            t, tips, truth = bands[(m, sig)]
+            qlo, qhi = np.percentile(tips[..., 1], [lo, hi], axis=0)
+            ax.fill_between(t, qlo, qhi, color="C0", alpha=0.35, lw=0, label=f"{level:g} % band")
+            ax.plot(t, truth[:, 1], color="k", lw=1.0, label="record")
+            ax.set_title(f"{m}, {sig}", fontsize=8)
+            if j == 0:
+                ax.set_ylabel("tip y [m]")
+    axes[0, 0].legend(fontsize=7)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    fig.tight_layout()
+    with atomic_path(out, ".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
