@@ -78,8 +78,9 @@ def test_auto_takes_a_law_from_the_nominal_rod_only_below_the_snr_threshold():
     assert choose_nominal("auto", snr, 1.0) == ["n1", "n2"]
     assert choose_nominal("auto", strain_snr(res, P, 0.0), 1.0) == []
     assert choose_nominal(["n2"], snr, 1.0) == ["n2"]
+    assert choose_nominal(["m", "n1"], snr, 1.0) == ["n1", "m"]
     with pytest.raises(ValueError, match="nominal_laws"):
-        choose_nominal(["m"], snr, 1.0)
+        choose_nominal(["kappa"], snr, 1.0)
 
 
 def test_schema_rejects_an_unknown_nominal_law():
