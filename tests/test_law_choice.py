@@ -38,7 +38,8 @@ def _bending_record(law, n_t: int = 300, seed: int = 0, noise: float = 2e-5):
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 2.0, n_t)[:, None]
     s = segment_arclength(N, L0 / N)[None, :]
-    kappa = -60.0 * (1 - s / L0) ** 2 * (0.6 + 0.4 * np.exp(-t) * np.cos(8 * t)) + 0.5 * rng.standard_normal((n_t, N))
+    swing = 0.6 + 0.4 * np.exp(-t) * np.cos(8 * t)
+    kappa = -60.0 * (1 - s / L0) ** 2 * swing + 0.5 * rng.standard_normal((n_t, N))
     S = np.broadcast_to(s, kappa.shape)
     m = law(kappa, S) + _ar1(kappa.size, 0.99, noise, rng).reshape(kappa.shape)
     return kappa.ravel(), S.ravel(), m.ravel()
