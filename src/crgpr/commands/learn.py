@@ -57,6 +57,7 @@ from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
+    MOMENTUM_LAWS,
     NOMINAL_LAWS,
     NominalLaw,
     SelectedInputs,
@@ -313,10 +314,10 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
 
     The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
     names (or, with ``auto``, n1 / n2 where the strain SNR is below ``camera.learn.snr_min``, and
-    n1 / n2 / m where a learned law does not predict held-out time blocks consistently better than
-    the nominal one: ``law_choice.learned_or_nominal``, recorded as ``law_choice``) replace the
-    objective features' GPs. The paper's features have no separate stretch and shear
-    law (q_x, q_y mix all three), so they are always learned in full.
+    n1 / n2 / m and the momentum maps where a learned law does not predict held-out time blocks
+    consistently better than the nominal one: ``law_choice.learned_or_nominal``, recorded as
+    ``law_choice``) replace the objective features' GPs. The paper's features have no separate
+    stretch and shear law (q_x, q_y mix all three), so they are always learned in full.
     """
     sigma = position_noise_std(np.concatenate([x, y], axis=1))
     res = {k: training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))[1]
@@ -331,6 +332,10 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
             X, y = training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))
             Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
             heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
+                                            int(cam["choice_blocks"])).to_dict()
+        for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
+            X, y = training_data(arr, params, NOMINAL_LAWS[k], None)
+            heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
                                             int(cam["choice_blocks"])).to_dict()
     chosen = choose_nominal(setting, snr, float(cam["snr_min"]), heldout)
     if features != "objective":

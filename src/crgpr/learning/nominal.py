@@ -18,10 +18,12 @@ Which laws: a fixed list (config ``camera.learn.nominal_laws``: a subset of [n1,
 
 * (n1, n2) when its strain is not resolvable by the positions: the strain signal-to-noise
   ratio ``strain_snr`` is below ``camera.learn.snr_min`` (below); or
-* (n1, n2, m) when a learned law does not predict held-out contiguous time blocks of its own
-  samples consistently better than the nominal law (``learning.law_choice.learned_or_nominal``:
-  fitted on one trajectory, a law the record cannot tell from the nominal one only adds the
-  record's systematic errors, and they mislead rollouts from other states).
+* (n1, n2, m and the momentum maps H_p(p)) when a learned law does not predict held-out
+  contiguous time blocks of its own samples consistently better than the nominal law
+  (``learning.law_choice.learned_or_nominal``: fitted on one trajectory, a law the record
+  cannot tell from the nominal one only adds the record's systematic errors, and they mislead
+  rollouts from other states; a learned momentum map is also tabulated over the record's
+  momenta only, 0 beyond them, where rollouts from larger angles go).
 
 The strain SNR:
 
@@ -44,13 +46,17 @@ import numpy as np
 
 from crgpr.physics.params import RodParams
 
-NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2", "m": "obj_m"}  # law -> objective component
+NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2", "m": "obj_m",  # law -> component
+                                 "p_x": "dH_dp_x", "p_y": "dH_dp_y", "p_theta": "dH_dp_theta"}
+MOMENTUM_LAWS = ("p_x", "p_y", "p_theta")  # H_p = p / (rho A), p / (rho I): the velocity maps
 
 
 class NominalLaw:
     """Component ``obj_n1`` / ``obj_n2`` / ``obj_m`` of the nominal rod: n1 = EA (nu1 - nu1_0),
     n2 = GA (nu2 - nu2_0) at objective n feature rows X (..., 3) = [nu1, nu2, kappa], or
-    m = EI (kappa - kappa0) at objective m feature rows (..., 5) = [kappa, ...] (eq. (10))."""
+    m = EI (kappa - kappa0) at objective m feature rows (..., 5) = [kappa, ...] (eq. (10)); or a
+    momentum map ``dH_dp_*`` of eq. (9): H_p = p / (rho A) (p_x, p_y), p / (rho I) (p_theta) at
+    momenta per length (...), with its ``slope`` (the 1-D components' convention)."""
 
     def __init__(self, law: str, params: RodParams):
         if law not in NOMINAL_LAWS:
@@ -61,13 +67,22 @@ class NominalLaw:
             self.col, self.stiffness, self.ref = 0, float(params.EA), float(params.nu1_0)
         elif law == "n2":
             self.col, self.stiffness, self.ref = 1, float(params.GA), float(params.nu2_0)
-        else:
+        elif law == "m":
             self.col, self.stiffness, self.ref = 0, float(params.EI), float(params.kappa0)
+        else:
+            self.col, self.ref = None, 0.0
+            self.stiffness = 1.0 / float(params.rhoI if law == "p_theta" else params.rhoA)
         self.meta: dict[str, Any] = {"name": self.name, "kind": "nominal", "law": law,
                                      "stiffness": self.stiffness, "reference_strain": self.ref}
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
+        if self.col is None:
+            return self.stiffness * np.asarray(X, dtype=float)
         return self.stiffness * (np.asarray(X)[..., self.col] - self.ref)
+
+    def slope(self, X: np.ndarray) -> np.ndarray:
+        """dH_p/dp of a momentum map (constant)."""
+        return np.full(np.shape(X), self.stiffness)
 
 
 class SelectedInputs:
@@ -142,7 +157,7 @@ def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: floa
     whose strain SNR is below ``snr_min``, and those of n1, n2, m whose learned stand-in does not
     predict held-out time blocks consistently better than the nominal law (``heldout``: law ->
     ``law_choice.HeldoutChoice.to_dict()``, key ``richer``; a law absent from it is learned
-    where its SNR allows; m is never dropped for its SNR: the positions resolve bending)."""
+    where its SNR allows; m and the momentum maps are never dropped for an SNR)."""
     if setting == "auto":
         heldout = heldout or {}
         low = {k for k in ("n1", "n2") if not snr[k]["snr"] >= snr_min}
