@@ -142,8 +142,17 @@ def test_linear_rod_keeps_the_nominal_laws_and_no_arclength(graded_and_linear):
     model, man = load_learned(d / "linear")
     assert not man["bending_arclength"]["used"]
     ch = man["law_choice"]
-    assert set(ch) == {"n1", "n2", "m"}
-    for k in ("n1", "n2"):  # the learned stretch and shear laws do not predict held-out blocks better
+    assert set(ch) == {"n1", "n2", "m", "p_x", "p_y", "p_theta"}
+    # the learned stretch and shear laws and momentum maps do not predict held-out blocks better
+    for k, comp in (("n1", "obj_n1"), ("n2", "obj_n2"), ("p_x", "dH_dp_x"), ("p_theta", "dH_dp_theta")):
         assert k in man["nominal_laws"] and not ch[k]["richer"], ch[k]
-        assert isinstance(model.components[f"obj_{k}"], NominalLaw)
+        assert isinstance(model.components[comp], NominalLaw)
     assert ("m" in man["nominal_laws"]) == (not ch["m"]["richer"])
+
+
+def test_a_nominal_momentum_map_is_p_over_the_mass_per_length():
+    P = rod_params(load_config(SMOKE))
+    p = np.linspace(-0.3, 0.3, 7)
+    assert np.allclose(NominalLaw("p_x", P)(p), p / P.rhoA)
+    assert np.allclose(NominalLaw("p_theta", P)(p), p / P.rhoI)
+    assert np.allclose(NominalLaw("p_y", P).slope(p), 1.0 / P.rhoA)
