@@ -12,7 +12,8 @@ force and moment balance of eq. (13)), the principle ``learning.laws`` uses for 
   is chosen only if it predicts the held-out blocks *consistently* better: mean(d) > 1.96 se(d)
   (blocks as independent units; the samples of one trajectory are correlated in time, so a
   per-sample criterion would take any systematic error of one record for a law). Where the
-  data cannot tell them apart, the simpler law is kept.
+  data cannot tell them apart, the simpler law is kept, and so it is where its held-out error
+  is at round-off (below sqrt(machine epsilon) x the targets' rms: nothing left to learn).
 
 The two comparisons (``learned_or_nominal``, ``arclength_dependence``) differ only in the laws:
 
@@ -109,7 +110,11 @@ def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, b
         d.append(math.log(max(errs[0], 1e-300) / max(errs[1], 1e-300)))
     dd = np.array(d)
     se = float(np.std(dd, ddof=1)) / math.sqrt(blocks)
-    return HeldoutChoice(richer=bool(dd.mean() > Z95 * se), heldout_mse_simple=e_s / n,
+    # a simpler law exact to round-off (held-out rms error below sqrt(machine epsilon) x the
+    # targets' rms: e.g. H_p = p / (rho A) of momenta derived from positions) leaves the richer
+    # law nothing but round-off to fit, however consistently
+    exact = math.sqrt(e_s / n) <= math.sqrt(np.finfo(float).eps) * float(np.sqrt(np.mean(y**2)))
+    return HeldoutChoice(richer=bool(dd.mean() > Z95 * se and not exact), heldout_mse_simple=e_s / n,
                          heldout_mse_richer=e_r / n, heldout_log_ratio=float(dd.mean()),
                          heldout_log_ratio_se=se, blocks=int(blocks), degree=int(degree))
 
