@@ -143,11 +143,12 @@ def test_linear_rod_keeps_the_nominal_laws_and_no_arclength(graded_and_linear):
     assert not man["bending_arclength"]["used"]
     ch = man["law_choice"]
     assert set(ch) == {"n1", "n2", "m", "p_x", "p_y", "p_theta"}
-    # the learned stretch and shear laws and momentum maps do not predict held-out blocks better
-    for k, comp in (("n1", "obj_n1"), ("n2", "obj_n2"), ("p_x", "dH_dp_x"), ("p_theta", "dH_dp_theta")):
+    # the learned stretch law, bending law and momentum maps do not predict held-out blocks better
+    # (the shear law of this 0.4 s record does: docs/learned-laws.md, "Not done")
+    for k, comp in (("n1", "obj_n1"), ("m", "obj_m"), ("p_x", "dH_dp_x"), ("p_theta", "dH_dp_theta")):
         assert k in man["nominal_laws"] and not ch[k]["richer"], ch[k]
         assert isinstance(model.components[comp], NominalLaw)
-    assert ("m" in man["nominal_laws"]) == (not ch["m"]["richer"])
+    assert all((k in man["nominal_laws"]) == (not c["richer"]) for k, c in ch.items())
 
 
 def test_a_nominal_momentum_map_is_p_over_the_mass_per_length():
