@@ -7,8 +7,8 @@ For the record (a file of ``benchmarks/learned_laws.py``: full state or camera p
 state and the law samples are built as ``crgpr learn`` builds them (gp prefilter; the end
 segments trimmed for positions), then:
 
-* per law (n1, n2, m) the held-out-block comparison of the nominal law and a learned stand-in
-  (``law_choice.learned_or_nominal``, the config's choice_degree and choice_blocks);
+* per law (n1, n2, m, the momentum maps) the held-out-block comparison of the nominal law and a
+  learned stand-in (``law_choice.learned_or_nominal``, the config's choice_degree and choice_blocks);
 * the arclength comparison (``law_choice.arclength_dependence``) with the config's spline in
   kappa and with a plain polynomial in kappa (``choice_knots`` = 0), to show what the spline is for;
 * with ``--models`` (a model directory with a ``laws.parquet``, e.g. the benchmark's ``before``
@@ -32,6 +32,7 @@ from crgpr.config import load_config
 from crgpr.learning.camera import LearnSettings, positions_to_state
 from crgpr.learning.gradient_models import inner_segments, training_data
 from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal, segment_arclength
+from crgpr.learning.nominal import MOMENTUM_LAWS, NOMINAL_LAWS, NominalLaw
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.measured.records import ScreenSettings, read_measured, validate_frame
 from crgpr.physics.simulate import Trajectory
@@ -70,6 +71,10 @@ def main() -> None:
                                    "m": (0, params.EI, params.kappa0)}.items():
         X, y = training_data(arr, params, f"obj_{law}", None, mask)
         c = learned_or_nominal(X[:, :1] if law == "m" else X, y, stiff * (X[:, col] - ref), deg, blocks)
+        rows.append({"quantity": "learned_or_nominal", "law": law, **c.to_dict()})
+    for law in MOMENTUM_LAWS:  # the velocity maps H_p(p) against p / (rho A), p / (rho I)
+        X, y = training_data(arr, params, NOMINAL_LAWS[law], None)
+        c = learned_or_nominal(X, y, NominalLaw(law, params)(X[:, 0]), deg, blocks)
         rows.append({"quantity": "learned_or_nominal", "law": law, **c.to_dict()})
     X, y = training_data(arr, params, "obj_m", None, mask)
     S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
