@@ -30,8 +30,9 @@ import pandas as pd
 from crgpr.commands.learn import _full_state_momenta, model_params
 from crgpr.config import load_config
 from crgpr.learning.camera import LearnSettings, positions_to_state
+from crgpr.learning.features import segment_arclength
 from crgpr.learning.gradient_models import inner_segments, training_data
-from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal, segment_arclength
+from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal
 from crgpr.learning.nominal import MOMENTUM_LAWS, NOMINAL_LAWS, NominalLaw
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.measured.records import ScreenSettings, read_measured, validate_frame

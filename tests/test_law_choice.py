@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from crgpr.commands.learn import learn, load_learned
 from crgpr.config import ConfigError, load_config, rod_params, validate_schema
 from crgpr.io import read_parquet, write_parquet
-from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal, segment_arclength
+from crgpr.learning.features import segment_arclength
+from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal
 from crgpr.learning.nominal import NominalLaw
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame

@@ -50,9 +50,9 @@ from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
-from crgpr.learning.features import OBJ_M_FEATURES
+from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
-from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal, segment_arclength
+from crgpr.learning.law_choice import bending_arclength, learned_or_nominal
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
@@ -266,28 +266,6 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
-
-
-def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[str, Any],
-                      segments: np.ndarray | None, applicable: bool) -> dict[str, Any]:
-    """Whether the learned bending law m takes the arclength s as an input (manifest
-    ``bending_arclength``): ``camera.learn.bending_arclength`` always / never, or with auto where
-    the law's samples vary along the rod by the held-out time blocks
-    (``law_choice.arclength_dependence``: a regression spline in kappa against the same spline
-    with coefficients polynomial in s). Only for the local law m(kappa) (``bending_inputs`` a
-    subset without all five inputs) of a learned obj_m."""
-    setting = str(cam["bending_arclength"])
-    if not applicable:
-        return {"setting": setting, "used": False, "choice": None}
-    choice = None
-    if setting == "auto":
-        X, m = training_data(arr, params, "obj_m", None, segments)
-        S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
-        S = (S if segments is None else S[:, segments]).reshape(-1)
-        choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
-                                      int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
-    used = setting == "always" or (choice is not None and choice["richer"])
-    return {"setting": setting, "used": bool(used), "choice": choice}
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int

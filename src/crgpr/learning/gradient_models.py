@@ -53,7 +53,6 @@ from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, exact_weights, fit_gp
 from crgpr.gp.sparse import nystrom_reduce
 from crgpr.io import read_parquet
 from crgpr.learning import features as ft
-from crgpr.learning.law_choice import segment_arclength
 from crgpr.learning.prefilter import prefiltered_arrays, read_prefiltered
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import STATE_NAMES
@@ -376,7 +375,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     grey-box bending law); ``odd_about``: a 1-D law odd about this input value (the bending
     moment of a rod with a symmetric section about its rest curvature, m(2 k0 - k) = -m(k)):
     n_train / 2 samples and their reflections (2 k0 - x, -y) are the training set; ``arclength``:
-    the segment's arclength s (midpoint, ``law_choice.segment_arclength``) is appended as the last
+    the segment's arclength s (midpoint, ``features.segment_arclength``) is appended as the last
     input (a law varying along the rod; recorded as ``arclength_input``; with ``odd_about`` only
     the first input is reflected). Used by stage 2 (prefilter files) and by ``crgpr learn``
     (camera data).
@@ -400,7 +399,7 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     if arclength:
         if check_X is not None or name != "obj_m":
             raise ConfigError(f"model {name}: arclength as an input is for obj_m without check states")
-        s_mid = segment_arclength(params.N, params.ds)
+        s_mid = ft.segment_arclength(params.N, params.ds)
         S = np.broadcast_to(s_mid, (arr["x"].shape[0], params.N))
         X = np.column_stack([X, (S if segments is None else S[:, segments]).reshape(-1)])
         feats = [*feats, "s"]

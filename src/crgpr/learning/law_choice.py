@@ -33,10 +33,14 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from itertools import combinations_with_replacement
+from typing import Any
 
 import numpy as np
 
+from crgpr.learning.features import segment_arclength
+from crgpr.learning.gradient_models import training_data
 from crgpr.learning.laws import Z95
+from crgpr.physics.params import RodParams
 
 
 @dataclass(frozen=True)
@@ -138,6 +142,23 @@ def arclength_dependence(kappa: np.ndarray, s: np.ndarray, m: np.ndarray, degree
     return compare_heldout(m, K, KS, blocks, degree)
 
 
-def segment_arclength(N: int, ds: float) -> np.ndarray:
-    """Arclength of the segment midpoints s_j = (j + 1/2) ds, j = 0..N-1 [m] (where kappa_j lives)."""
-    return (np.arange(N) + 0.5) * ds
+def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[str, Any],
+                      segments: np.ndarray | None, applicable: bool) -> dict[str, Any]:
+    """Whether the learned bending law m takes the arclength s as an input (manifest
+    ``bending_arclength``): ``camera.learn.bending_arclength`` always / never, or with auto where
+    the law's samples vary along the rod by the held-out time blocks
+    (``arclength_dependence``: a regression spline in kappa against the same spline
+    with coefficients polynomial in s). Only for the local law m(kappa) (``bending_inputs`` a
+    subset without all five inputs) of a learned obj_m."""
+    setting = str(cam["bending_arclength"])
+    if not applicable:
+        return {"setting": setting, "used": False, "choice": None}
+    choice = None
+    if setting == "auto":
+        X, m = training_data(arr, params, "obj_m", None, segments)
+        S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
+        S = (S if segments is None else S[:, segments]).reshape(-1)
+        choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
+                                      int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
+    used = setting == "always" or (choice is not None and choice["richer"])
+    return {"setting": setting, "used": bool(used), "choice": choice}
