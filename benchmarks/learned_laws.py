@@ -115,7 +115,8 @@ def main() -> None:
     row["nominal_mean_rmse_theta"] = float(np.mean(rn))
     nom_mean = row["nominal_mean_rmse_theta"]
     row["ratio_to_nominal"] = row["mean_rmse_theta"] / nom_mean if nom_mean > 0 else float("nan")
-    for k in ("bending_odd_about", "rest_state", "nominal_laws", "models", "law_choice", "bending_inputs"):
+    for k in ("bending_odd_about", "rest_state", "nominal_laws", "models", "law_choice", "bending_inputs",
+              "bending_arclength"):
         if k in man:
             row[k] = json.dumps(man[k])
     print(json.dumps(row, indent=1))
