@@ -101,6 +101,7 @@ def noisy_models(tmp_path_factory, smoke_training_run):
     learn(d / "cam.parquet", d / "auto", cfg, "objective", "gp")
     grey = copy.deepcopy(cfg)
     grey["camera"]["learn"]["nominal_laws"] = ["n1", "n2"]  # the bending law and momentum maps learned
+    grey["camera"]["learn"]["bending_arclength"] = "never"  # m(kappa), odd about its rest curvature
     learn(d / "cam.parquet", d / "grey", grey, "objective", "gp")
     white = copy.deepcopy(cfg)
     white["camera"]["learn"]["nominal_laws"] = []

@@ -39,6 +39,7 @@ def grey_box(tmp_path_factory, smoke_training_run) -> tuple[dict, Path]:
     write_parquet(camera_frame(tr.t, tr.q, 1e-3, np.random.default_rng(7)), d / "cam.parquet")
     grey = copy.deepcopy(cfg)
     grey["camera"]["learn"]["nominal_laws"] = ["n1", "n2"]  # the bending law and momentum maps learned
+    grey["camera"]["learn"]["bending_arclength"] = "never"  # m(kappa): one input, tabulated samples
     learn(d / "cam.parquet", d / "model", grey, "objective", "gp")
     man = read_manifest(d / "model")
     assert man["nominal_laws"] == ["n1", "n2"] and man["rest_state"]["symmetric"]

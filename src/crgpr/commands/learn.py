@@ -228,14 +228,15 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
-    rest = None
-    if sym == "auto" and features == "objective" and "obj_m" in trained:
-        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
-        Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
-        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
-        odd = rest.mirror_about(float(params.kappa0))
     along_s = bending_arclength(arr, params, cam, masks.get("obj_m"),
                                 features == "objective" and "obj_m" in trained and m_cols is not None)
+    rest = None
+    if sym == "auto" and features == "objective" and "obj_m" in trained:
+        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples;
+        # its laws are uniform along the rod, so a law that varies along s is not mirrored (recorded only)
+        Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
+        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
+        odd = None if along_s["used"] else rest.mirror_about(float(params.kappa0))
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
