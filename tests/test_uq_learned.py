@@ -5,6 +5,7 @@ tabulated on the rollout's grid; the rows of an odd law kept with their reflecti
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 from pathlib import Path
@@ -36,7 +37,10 @@ def grey_box(tmp_path_factory, smoke_training_run) -> tuple[dict, Path]:
     cfg, tr = smoke_training_run
     d = tmp_path_factory.mktemp("uq_learned")
     write_parquet(camera_frame(tr.t, tr.q, 1e-3, np.random.default_rng(7)), d / "cam.parquet")
-    learn(d / "cam.parquet", d / "model", cfg, "objective", "gp")
+    grey = copy.deepcopy(cfg)
+    grey["camera"]["learn"]["nominal_laws"] = ["n1", "n2"]  # the bending law and momentum maps learned
+    grey["camera"]["learn"]["bending_arclength"] = "never"  # m(kappa): one input, tabulated samples
+    learn(d / "cam.parquet", d / "model", grey, "objective", "gp")
     man = read_manifest(d / "model")
     assert man["nominal_laws"] == ["n1", "n2"] and man["rest_state"]["symmetric"]
     rest = man["rest_state"]  # the band contains the straight rod's 0: mirrored about the nominal 0

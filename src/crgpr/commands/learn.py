@@ -13,7 +13,11 @@ paper's rod by default, ``--config``, ``--set``).
 Grey box (objective features, ``camera.learn.nominal_laws``): the stretch and shear laws n1, n2
 that the positions cannot resolve come from the nominal rod (``learning.nominal.NominalLaw``)
 and only the bending moment m (and the momentum maps) are learned; with ``auto`` the choice is
-made from the strain signal-to-noise ratios, which the manifest records with the decision.
+made from the strain signal-to-noise ratios and, for n1, n2 and m, from held-out time blocks
+(``learning.law_choice``: the nominal law is kept unless a learned one predicts them
+consistently better), which the manifest records with the decision (``law_choice``). Where the
+data show the bending law varying along the rod (``camera.learn.bending_arclength``), m takes
+the segment's arclength s as an input (manifest ``bending_arclength``).
 
 MODEL_DIR holds one ``.npz`` + ``.json`` per gradient model and ``manifest.json`` (written
 last; its presence marks a complete directory): features, prefilter, input kind, source file,
@@ -46,12 +50,14 @@ from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
-from crgpr.learning.features import OBJ_M_FEATURES
+from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
+from crgpr.learning.law_choice import bending_arclength, learned_or_nominal
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
+    MOMENTUM_LAWS,
     NOMINAL_LAWS,
     NominalLaw,
     SelectedInputs,
@@ -222,12 +228,15 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
+    along_s = bending_arclength(arr, params, cam, masks.get("obj_m"),
+                                features == "objective" and "obj_m" in trained and m_cols is not None)
     rest = None
     if sym == "auto" and features == "objective" and "obj_m" in trained:
-        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
+        # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples;
+        # its laws are uniform along the rod, so a law that varies along s is not mirrored (recorded only)
         Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
         rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]))
-        odd = rest.mirror_about(float(params.kappa0))
+        odd = None if along_s["used"] else rest.mirror_about(float(params.kappa0))
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
@@ -238,7 +247,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
                                   extra={"input": kind}, segments=masks[name],
                                   columns=m_cols if name == "obj_m" else None,
-                                  odd_about=odd if name == "obj_m" else None)
+                                  odd_about=odd if name == "obj_m" else None,
+                                  arclength=name == "obj_m" and along_s["used"])
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
     laws = law_outputs(out, trained, params, cam["law_table"], seed)
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
@@ -249,7 +259,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": sym if features == "objective" else None,
-                "rest_state": None if rest is None else rest.to_dict(),
+                "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,
                 "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
@@ -271,7 +281,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
     tab = law_tables(out, trained, params, settings, seed)
     if tab.empty:
         return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
-    write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, "
+    write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
                                          "nominal, covered, covered_lo, covered_hi, sd_points (SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
     return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
@@ -282,20 +292,35 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
     """Which constitutive laws come from the nominal rod (``learning.nominal``) and why.
 
     The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
-    names (or, with ``auto``, those whose strain SNR is below ``camera.learn.snr_min``) replace
-    the objective features' n1 / n2 GPs. The paper's features have no separate stretch and shear
-    law (q_x, q_y mix all three), so they are always learned in full.
+    names (or, with ``auto``, n1 / n2 where the strain SNR is below ``camera.learn.snr_min``, and
+    n1 / n2 / m and the momentum maps where a learned law does not predict held-out time blocks
+    consistently better than the nominal one: ``law_choice.learned_or_nominal``, recorded as
+    ``law_choice``) replace the objective features' GPs. The paper's features have no separate
+    stretch and shear law (q_x, q_y mix all three), so they are always learned in full.
     """
     sigma = position_noise_std(np.concatenate([x, y], axis=1))
     res = {k: training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))[1]
            for k in ("n1", "n2", "m")}
     snr = strain_snr(res, params, sigma)
     setting = cam["nominal_laws"]
-    chosen = choose_nominal(setting, snr, float(cam["snr_min"]))
+    heldout = None
+    if setting == "auto" and features == "objective":
+        heldout = {}
+        for k, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
+                                     "m": (0, params.EI, params.kappa0)}.items():
+            X, y = training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))
+            Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
+            heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
+                                            int(cam["choice_blocks"])).to_dict()
+        for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
+            X, y = training_data(arr, params, NOMINAL_LAWS[k], None)
+            heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
+                                            int(cam["choice_blocks"])).to_dict()
+    chosen = choose_nominal(setting, snr, float(cam["snr_min"]), heldout)
     if features != "objective":
         chosen = []
     return {"nominal_laws": chosen, "nominal_laws_setting": setting, "snr_min": float(cam["snr_min"]),
-            "position_noise_std_m_differences": sigma, "strain_snr": snr,
+            "law_choice": heldout, "position_noise_std_m_differences": sigma, "strain_snr": snr,
             "nominal_stiffness": {"EA": params.EA, "GA": params.GA, "nu1_0": params.nu1_0,
                                   "nu2_0": params.nu2_0}}
 
@@ -330,7 +355,8 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
         meta = json.loads((Path(model_dir) / f"{m}.json").read_text())
         cols = meta.get("feature_columns")
         comp = load(m)
-        comps[m] = comp if cols is None else SelectedInputs(comp, cols)
+        s_mid = segment_arclength(params.N, params.ds) if meta.get("arclength_input") else None
+        comps[m] = comp if cols is None else SelectedInputs(comp, cols, s_mid)
         if m in ("q_x", "dH_dtheta"):
             center = meta.get("theta_center")
     return comps, (center if man["features"] == "paper" else None)

@@ -48,6 +48,11 @@ OBJ_N_FEATURES = ("nu1", "nu2", "kappa")
 OBJ_M_FEATURES = ("kappa", "kappa_jm1", "kappa_jp1", "nu1", "nu2")
 
 
+def segment_arclength(N: int, ds: float) -> np.ndarray:
+    """Arclength of the segment midpoints s_j = (j + 1/2) ds, j = 0..N-1 [m] (where kappa_j lives)."""
+    return (np.arange(N) + 0.5) * ds
+
+
 def theta_center(theta: np.ndarray) -> float:
     """Centre of the training range of theta (n_t, N+1) over the free nodes 1..N: the middle of
     the 2 pi window that ``wrap_shift`` maps angle features into."""

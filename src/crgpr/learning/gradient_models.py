@@ -363,7 +363,8 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
                        out_stem: str | Path, source: str, prefilter_method: str,
                        extra: dict[str, Any] | None = None, segments: np.ndarray | None = None,
                        check_states: list[str] | None = None, hyper: str = "fitted",
-                       columns: list[int] | None = None, odd_about: float | None = None) -> dict[str, Any]:
+                       columns: list[int] | None = None, odd_about: float | None = None,
+                       arclength: bool = False) -> dict[str, Any]:
     """Fit model ``name`` on derivative-data arrays (schema of ``prefiltered_arrays``) and save it.
 
     ``params`` is the rod the arrays live on (its N sets the node grid); ``extra`` is added
@@ -373,8 +374,11 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     ``feature_columns``; the evaluator must be given the same columns, ``crgpr learn``'s
     grey-box bending law); ``odd_about``: a 1-D law odd about this input value (the bending
     moment of a rod with a symmetric section about its rest curvature, m(2 k0 - k) = -m(k)):
-    n_train / 2 samples and their reflections (2 k0 - x, -y) are the training set. Used by stage 2
-    (prefilter files) and by ``crgpr learn`` (camera data).
+    n_train / 2 samples and their reflections (2 k0 - x, -y) are the training set; ``arclength``:
+    the segment's arclength s (midpoint, ``features.segment_arclength``) is appended as the last
+    input (a law varying along the rod; recorded as ``arclength_input``; with ``odd_about`` only
+    the first input is reflected). Used by stage 2 (prefilter files) and by ``crgpr learn``
+    (camera data).
     """
     gm = cfg["gradient_models"]
     spec = model_spec(cfg, name)
@@ -392,6 +396,13 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
         X = X[:, columns]
         check_X = None if check_X is None else check_X[:, columns]
         feats = [feats[c] for c in columns]
+    if arclength:
+        if check_X is not None or name != "obj_m":
+            raise ConfigError(f"model {name}: arclength as an input is for obj_m without check states")
+        s_mid = ft.segment_arclength(params.N, params.ds)
+        S = np.broadcast_to(s_mid, (arr["x"].shape[0], params.N))
+        X = np.column_stack([X, (S if segments is None else S[:, segments]).reshape(-1)])
+        feats = [*feats, "s"]
     spread = np.ptp(X, axis=0)
     flat = [f"{f} (spread {sp:.1e})" for f, sp in zip(feats, spread, strict=True)
             if sp <= float(gm["min_input_spread"])]
@@ -400,17 +411,20 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
                          f"{', '.join(flat)} (config key gradient_models.min_input_spread); "
                          "train on a trajectory that moves them (angles.train_deg)")
     if odd_about is not None:
-        if X.shape[1] != 1:
-            raise ConfigError(f"model {name}: an odd-symmetric law needs one input, got {X.shape[1]}")
+        if X.shape[1] != 1 + int(arclength):
+            raise ConfigError(f"model {name}: an odd-symmetric law needs one input (and s), got {X.shape[1]}")
         # n_train / 2 samples (seeded) and their reflections: the training set is exactly symmetric
         half = min(int(spec["n_train"]) // 2, X.shape[0])
         keep = np.sort(np.random.default_rng(seed).choice(X.shape[0], size=half, replace=False))
         X, y = X[keep], y[keep]
-        X, y = np.concatenate([X, 2.0 * odd_about - X]), np.concatenate([y, -y])
+        Xr = X.copy()
+        Xr[:, 0] = 2.0 * odd_about - X[:, 0]
+        X, y = np.concatenate([X, Xr]), np.concatenate([y, -y])
     gp, arrays, report = fit_model(name, X, y, spec, gm, seed, check_X, hyper)
     meta = {"name": name, "features": feats, "theta_center": center,
             **({"feature_columns": list(columns)} if columns is not None else {}),
             **({"odd_about": float(odd_about)} if odd_about is not None else {}),
+            **({"arclength_input": True} if arclength else {}),
             "prefilter": prefilter_method, "source": str(source), "seed": seed, **report,
             "check_states": [str(c) for c in (check_states or [])],
             "target": "H_z = (J - R)^-1 (dz/dt - G u), features.py", **(extra or {})}

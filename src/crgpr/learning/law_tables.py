@@ -14,7 +14,10 @@ both sides, the other inputs at their training medians:
   coefficients' uncertainty and the prior variance take over);
 * ``nominal``: the nominal rod's law at the same inputs (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 -
   nu2_0), m = EI (kappa - kappa0));
-* ``covered``: whether x_j lies inside [lo_j, hi_j].
+* ``covered``: whether x_j lies inside [lo_j, hi_j];
+* ``at_s``: for a law with the arclength s as an input (a bending law varying along the rod,
+  ``law_choice``), the grid of every other input is repeated at ``s_points`` values of s evenly
+  over its covered range (so EI(s) can be read off); NaN otherwise and for the s grid itself.
 """
 
 from __future__ import annotations
@@ -64,38 +67,44 @@ def _sd_model(stem: Path, max_points: int, seed: int) -> GP:
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
-              max_points: int, seed: int) -> pd.DataFrame:
+              max_points: int, seed: int, s_points: int) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
-    covered_lo, covered_hi, sd_points."""
+    covered_lo, covered_hi, sd_points, at_s."""
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
     sd_gp = _sd_model(stem, max_points, seed)
     med = np.median(Xt, axis=0)
+    js = features.index("s") if "s" in features else None
+    s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
     rows = []
     for j, feat in enumerate(features):
         lo, hi = float(Xt[:, j].min()), float(Xt[:, j].max())
         w = pad * max(hi - lo, 1e-12)
         g = np.linspace(lo - w, hi + w, n_grid)
-        X = np.tile(med, (n_grid, 1))
-        X[:, j] = g
-        _, var = sd_gp.predict(X, return_var=True)
-        rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X),
-                                  "sd": np.sqrt(np.asarray(var, dtype=float).ravel()),
-                                  "nominal": nominal_law(name, features, X, params),
-                                  "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
-                                  "sd_points": int(sd_gp.n)}))
+        for sv in ([np.nan] if j == js else s_at):
+            X = np.tile(med, (n_grid, 1))
+            if np.isfinite(sv):
+                X[:, js] = sv
+            X[:, j] = g
+            _, var = sd_gp.predict(X, return_var=True)
+            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X),
+                                      "sd": np.sqrt(np.asarray(var, dtype=float).ravel()),
+                                      "nominal": nominal_law(name, features, X, params),
+                                      "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
+                                      "sd_points": int(sd_gp.n), "at_s": float(sv)}))
     return pd.concat(rows, ignore_index=True)
 
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
                seed: int) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
-    ``camera.learn.law_table``: n_grid, pad, max_points)."""
+    ``camera.learn.law_table``: n_grid, pad, max_points, s_points)."""
     out = []
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
-                             float(settings["pad"]), int(settings["max_points"]), seed))
+                             float(settings["pad"]), int(settings["max_points"]), seed,
+                             int(settings["s_points"])))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()

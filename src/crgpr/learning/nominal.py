@@ -13,10 +13,19 @@ the simulator's eq. (4) discretisation, physics/rod.py):
 ``learning.learned.LearnedRod`` (a callable on the objective feature rows [nu1, nu2, kappa]),
 so the learned rod, its rollouts and its energy are unchanged.
 
-Which laws: a fixed list (config ``camera.learn.nominal_laws``: [n1], [n2], [n1, n2], []) or
-``auto``: a law is taken from the nominal rod when its strain is not resolvable by the
-positions, i.e. when the strain signal-to-noise ratio ``strain_snr`` is below
-``camera.learn.snr_min``:
+Which laws: a fixed list (config ``camera.learn.nominal_laws``: a subset of [n1, n2, m]) or
+``auto``: a law is taken from the nominal rod when the data do not support learning it, i.e.
+
+* (n1, n2) when its strain is not resolvable by the positions: the strain signal-to-noise
+  ratio ``strain_snr`` is below ``camera.learn.snr_min`` (below); or
+* (n1, n2, m and the momentum maps H_p(p)) when a learned law does not predict held-out
+  contiguous time blocks of its own samples consistently better than the nominal law
+  (``learning.law_choice.learned_or_nominal``: fitted on one trajectory, a law the record
+  cannot tell from the nominal one only adds the record's systematic errors, and they mislead
+  rollouts from other states; a learned momentum map is also tabulated over the record's
+  momenta only, 0 beyond them, where rollouts from larger angles go).
+
+The strain SNR:
 
     signal = rms(n_k) / (stiffness_k)           the strain the measured resultants n_k (from
                                                 the force balance, eq. (13)) imply on the
@@ -37,12 +46,17 @@ import numpy as np
 
 from crgpr.physics.params import RodParams
 
-NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2"}  # law -> objective component
+NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2", "m": "obj_m",  # law -> component
+                                 "p_x": "dH_dp_x", "p_y": "dH_dp_y", "p_theta": "dH_dp_theta"}
+MOMENTUM_LAWS = ("p_x", "p_y", "p_theta")  # H_p = p / (rho A), p / (rho I): the velocity maps
 
 
 class NominalLaw:
-    """Component ``obj_n1`` / ``obj_n2`` of the nominal rod: n1 = EA (nu1 - nu1_0) or
-    n2 = GA (nu2 - nu2_0) at objective feature rows X (..., 3) = [nu1, nu2, kappa]."""
+    """Component ``obj_n1`` / ``obj_n2`` / ``obj_m`` of the nominal rod: n1 = EA (nu1 - nu1_0),
+    n2 = GA (nu2 - nu2_0) at objective n feature rows X (..., 3) = [nu1, nu2, kappa], or
+    m = EI (kappa - kappa0) at objective m feature rows (..., 5) = [kappa, ...] (eq. (10)); or a
+    momentum map ``dH_dp_*`` of eq. (9): H_p = p / (rho A) (p_x, p_y), p / (rho I) (p_theta) at
+    momenta per length (...), with its ``slope`` (the 1-D components' convention)."""
 
     def __init__(self, law: str, params: RodParams):
         if law not in NOMINAL_LAWS:
@@ -51,28 +65,44 @@ class NominalLaw:
         self.name = NOMINAL_LAWS[law]
         if law == "n1":
             self.col, self.stiffness, self.ref = 0, float(params.EA), float(params.nu1_0)
-        else:
+        elif law == "n2":
             self.col, self.stiffness, self.ref = 1, float(params.GA), float(params.nu2_0)
+        elif law == "m":
+            self.col, self.stiffness, self.ref = 0, float(params.EI), float(params.kappa0)
+        else:
+            self.col, self.ref = None, 0.0
+            self.stiffness = 1.0 / float(params.rhoI if law == "p_theta" else params.rhoA)
         self.meta: dict[str, Any] = {"name": self.name, "kind": "nominal", "law": law,
                                      "stiffness": self.stiffness, "reference_strain": self.ref}
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
+        if self.col is None:
+            return self.stiffness * np.asarray(X, dtype=float)
         return self.stiffness * (np.asarray(X)[..., self.col] - self.ref)
+
+    def slope(self, X: np.ndarray) -> np.ndarray:
+        """dH_p/dp of a momentum map (constant)."""
+        return np.full(np.shape(X), self.stiffness)
 
 
 class SelectedInputs:
     """A component fitted on some columns of its feature rows (``feature_columns`` of the model's
     JSON): the grey-box bending law m(kappa) evaluated on the objective m features. One column:
     the 1-D components' convention (values (...), like the momentum maps H_p(p)); several:
-    rows (..., k)."""
+    rows (..., k). ``arclength`` (N,): the segments' s, appended as the last input (a law that
+    varies along the rod, ``arclength_input`` of the model's JSON); the rows are then (..., N, k)."""
 
-    def __init__(self, component: Any, columns: list[int]):
+    def __init__(self, component: Any, columns: list[int], arclength: np.ndarray | None = None):
         self.component = component
         self.columns = list(columns)
+        self.arclength = None if arclength is None else np.asarray(arclength, dtype=float)
         self.meta = getattr(component, "meta", {})
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X)
+        if self.arclength is not None:
+            s = np.broadcast_to(self.arclength[:, None], (*X.shape[:-1], 1))
+            return self.component(np.concatenate([X[..., self.columns], s], axis=-1))
         if len(self.columns) == 1:
             return self.component(X[..., self.columns[0]])
         return self.component(X[..., self.columns])
@@ -121,11 +151,17 @@ def segment_curvature_snr(m: np.ndarray, EI: float, kappa_noise: np.ndarray) -> 
     return np.where(known, sig / np.where(known, noise, 1.0), np.inf)
 
 
-def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: float) -> list[str]:
+def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: float,
+                   heldout: dict[str, dict] | None = None) -> list[str]:
     """Laws taken from the nominal rod: the configured list, or with ``auto`` those of n1, n2
-    whose strain SNR is below ``snr_min`` (m is always learned)."""
+    whose strain SNR is below ``snr_min``, and those of n1, n2, m whose learned stand-in does not
+    predict held-out time blocks consistently better than the nominal law (``heldout``: law ->
+    ``law_choice.HeldoutChoice.to_dict()``, key ``richer``; a law absent from it is learned
+    where its SNR allows; m and the momentum maps are never dropped for an SNR)."""
     if setting == "auto":
-        return [k for k in NOMINAL_LAWS if not snr[k]["snr"] >= snr_min]
+        heldout = heldout or {}
+        low = {k for k in ("n1", "n2") if not snr[k]["snr"] >= snr_min}
+        return [k for k in NOMINAL_LAWS if k in low or (k in heldout and not heldout[k]["richer"])]
     bad = [k for k in setting if k not in NOMINAL_LAWS]
     if bad:
         raise ValueError(f"camera.learn.nominal_laws: unknown law(s) {bad}; expected 'auto' or a "

@@ -18,7 +18,7 @@ from crgpr.io import atomic_path  # noqa: E402
 Z95 = 1.959963984540054
 LAW_LABELS = {"obj_m": "m [N m]", "obj_n1": "$n_1$ [N]", "obj_n2": "$n_2$ [N]"}
 INPUT_LABELS = {"kappa": r"$\kappa$ [1/m]", "nu1": r"$\nu_1$ [-]", "nu2": r"$\nu_2$ [-]",
-                "kappa_jm1": r"$\kappa_{j-1}$ [1/m]", "kappa_jp1": r"$\kappa_{j+1}$ [1/m]"}
+                "kappa_jm1": r"$\kappa_{j-1}$ [1/m]", "kappa_jp1": r"$\kappa_{j+1}$ [1/m]", "s": "$s$ [m]"}
 
 
 def law_figure(table: pd.DataFrame, out: str | Path, title: str = "") -> None:
@@ -26,12 +26,15 @@ def law_figure(table: pd.DataFrame, out: str | Path, title: str = "") -> None:
     panels = list(table.groupby(["law", "input"], sort=False))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
     for ax, ((law, inp), d) in zip(axes[0], panels, strict=True):
-        x, m, s = d["x"].to_numpy(), d["mean"].to_numpy(), d["sd"].to_numpy()
         ax.axvspan(float(d["covered_lo"].iloc[0]), float(d["covered_hi"].iloc[0]), color="0.92",
                    label="covered range")
-        ax.fill_between(x, m - Z95 * s, m + Z95 * s, color="C0", alpha=0.3, label="95 % band")
-        ax.plot(x, m, color="C0", label="learned (mean)")
-        ax.plot(x, d["nominal"].to_numpy(), "k--", lw=1, label="nominal rod")
+        at_s = d["at_s"] if "at_s" in d else pd.Series(float("nan"), index=d.index)
+        for i, (sv, e) in enumerate(d.groupby(at_s.fillna(-1.0), sort=True)):
+            x, m, s = e["x"].to_numpy(), e["mean"].to_numpy(), e["sd"].to_numpy()
+            tag = "" if sv < 0 else f" at s = {sv:.3g} m"
+            ax.fill_between(x, m - Z95 * s, m + Z95 * s, color=f"C{i}", alpha=0.3, label="95 % band" + tag)
+            ax.plot(x, m, color=f"C{i}", label="learned (mean)" + tag)
+        ax.plot(x, d["nominal"].to_numpy()[: len(x)], "k--", lw=1, label="nominal rod")
         ax.set_xlabel(INPUT_LABELS.get(inp, inp))
         ax.set_ylabel(LAW_LABELS.get(law, law))
     axes[0][0].legend(fontsize=7)

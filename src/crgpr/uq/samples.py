@@ -136,7 +136,7 @@ def select_samples(smp: Any, keep: np.ndarray) -> Any:
     as it is."""
     keep = np.asarray(keep, dtype=int)
     if isinstance(smp, SelectedInputs):
-        return SelectedInputs(select_samples(smp.component, keep), smp.columns)
+        return SelectedInputs(select_samples(smp.component, keep), smp.columns, smp.arclength)
     if not is_sample_set(smp):
         return smp
     if isinstance(smp, TabulatedSamples):

@@ -1,0 +1,164 @@
+"""Which constitutive laws the data support: learned or nominal, and uniform or varying along s.
+
+The paper's premise (Sec. II) is that a soft rod's laws are unknown, nonlinear and may vary
+along the body; a learned law is only worth its freedom where the data pin it down. Both
+decisions here compare a simpler law with a richer one by how well each predicts *held-out
+contiguous time blocks* of the law's own training samples (n1, n2, m of eq. (10), from the
+force and moment balance of eq. (13)), the principle ``learning.laws`` uses for the symmetry:
+
+* the samples, in time order (rows as ``gradient_models.training_data`` returns them), are cut
+  into ``blocks`` contiguous blocks; each law is fitted without one block and predicts it;
+* per block, d_b = log(simple law's squared error / richer law's squared error); the richer law
+  is chosen only if it predicts the held-out blocks *consistently* better: mean(d) > 1.96 se(d)
+  (blocks as independent units; the samples of one trajectory are correlated in time, so a
+  per-sample criterion would take any systematic error of one record for a law). Where the
+  data cannot tell them apart, the simpler law is kept, and so it is where its held-out error
+  is at round-off (below sqrt(machine epsilon) x the targets' rms: nothing left to learn).
+
+The two comparisons (``learned_or_nominal``, ``arclength_dependence``) differ only in the laws:
+
+* learned or nominal (n1, n2, m): the nominal law (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 - nu2_0),
+  m = EI (kappa - kappa0); no free parameter) against the nominal law plus a polynomial of total
+  degree D in the law's inputs, the smooth stand-in of what a GP can learn from the same samples;
+* uniform or along s (m): a cubic regression spline in kappa (``spline_basis``: degree D, K
+  knots at quantiles of kappa) against the same spline whose coefficients are polynomials of
+  degree L = ``s_degree`` in s (a law varying smoothly along the rod). The uniform law must be
+  flexible enough that s cannot stand in for its misfit: segments near the clamp see larger
+  curvatures, so a too-rigid m(kappa) (a plain cubic for a saturating law) fits better per
+  region of the rod, and s would look informative on a uniform rod.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from itertools import combinations_with_replacement
+from typing import Any
+
+import numpy as np
+
+from crgpr.learning.features import segment_arclength
+from crgpr.learning.gradient_models import training_data
+from crgpr.learning.laws import Z95
+from crgpr.physics.params import RodParams
+
+
+@dataclass(frozen=True)
+class HeldoutChoice:
+    """A held-out-block comparison of a simpler and a richer law (JSON-able)."""
+
+    richer: bool  # the richer law predicts the held-out blocks consistently better: it is used
+    heldout_mse_simple: float  # mean squared held-out error of the simpler law [target units^2]
+    heldout_mse_richer: float  # ... of the richer law
+    heldout_log_ratio: float  # mean over blocks of log(simpler / richer held-out squared error) [-]
+    heldout_log_ratio_se: float  # its standard error over the blocks [-]
+    blocks: int
+    degree: int
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def poly_design(Z: np.ndarray, degree: int) -> np.ndarray:
+    """All monomials of total degree <= ``degree`` (constant included) of the columns of Z (n, k),
+    each column standardised over the rows first."""
+    Z = np.asarray(Z, dtype=float)
+    if Z.ndim == 1:
+        Z = Z[:, None]
+    sd = Z.std(0)
+    U = (Z - Z.mean(0)) / np.where(sd > 0, sd, 1.0)
+    cols = [np.ones(U.shape[0])]
+    for d in range(1, degree + 1):
+        cols += [np.prod(U[:, list(c)], axis=1) for c in combinations_with_replacement(range(U.shape[1]), d)]
+    return np.stack(cols, axis=1)
+
+
+def spline_basis(x: np.ndarray, degree: int, knots: int) -> np.ndarray:
+    """Regression spline of ``degree`` in x (n,): the monomials of ``poly_design`` and truncated
+    powers max(0, (x - c_i) / sd(x))^degree at ``knots`` interior quantiles c_i of x."""
+    x = np.asarray(x, dtype=float).ravel()
+    A = poly_design(x, degree)
+    if knots <= 0:
+        return A
+    sd = float(x.std()) or 1.0
+    c = np.quantile(x, np.linspace(0.0, 1.0, knots + 2)[1:-1])
+    return np.column_stack([A, *(np.maximum(0.0, (x - ci) / sd) ** degree for ci in c)])
+
+
+def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, blocks: int,
+                    degree: int, offset: np.ndarray | None = None) -> HeldoutChoice:
+    """Held-out-block comparison (module docstring) of two laws linear in their coefficients:
+    y ~ offset + A_simple a and y ~ offset + A_richer b (least squares on the blocks kept);
+    ``A_simple`` may have no columns (the law is ``offset`` alone, e.g. the nominal law)."""
+    y = np.asarray(y, dtype=float).ravel()
+    r = y if offset is None else y - np.asarray(offset, dtype=float).ravel()
+    n = y.size
+    if blocks < 2 or n < blocks * (A_richer.shape[1] + 1):
+        raise ValueError(f"held-out blocks: {n} samples cannot fill {blocks} blocks of a law with "
+                         f"{A_richer.shape[1]} coefficients")
+    edges = np.linspace(0, n, blocks + 1).astype(int)
+    e_s = e_r = 0.0
+    d = []
+    for b in range(blocks):
+        test = np.zeros(n, dtype=bool)
+        test[edges[b]:edges[b + 1]] = True
+        errs = []
+        for A in (A_simple, A_richer):
+            if A.shape[1] == 0:
+                pred = np.zeros(int(test.sum()))
+            else:
+                coef, *_ = np.linalg.lstsq(A[~test], r[~test], rcond=None)
+                pred = A[test] @ coef
+            errs.append(float(np.sum((r[test] - pred) ** 2)))
+        e_s, e_r = e_s + errs[0], e_r + errs[1]
+        d.append(math.log(max(errs[0], 1e-300) / max(errs[1], 1e-300)))
+    dd = np.array(d)
+    se = float(np.std(dd, ddof=1)) / math.sqrt(blocks)
+    # a simpler law exact to round-off (held-out rms error below sqrt(machine epsilon) x the
+    # targets' rms: e.g. H_p = p / (rho A) of momenta derived from positions) leaves the richer
+    # law nothing but round-off to fit, however consistently
+    exact = math.sqrt(e_s / n) <= math.sqrt(np.finfo(float).eps) * float(np.sqrt(np.mean(y**2)))
+    return HeldoutChoice(richer=bool(dd.mean() > Z95 * se and not exact), heldout_mse_simple=e_s / n,
+                         heldout_mse_richer=e_r / n, heldout_log_ratio=float(dd.mean()),
+                         heldout_log_ratio_se=se, blocks=int(blocks), degree=int(degree))
+
+
+def learned_or_nominal(X: np.ndarray, y: np.ndarray, nominal: np.ndarray, degree: int, blocks: int
+                       ) -> HeldoutChoice:
+    """Nominal law (``nominal``: its prediction at the samples) against the nominal law plus a
+    polynomial of total degree ``degree`` in the law's inputs X (n, k); ``richer`` = learn it."""
+    A = poly_design(X, degree)
+    return compare_heldout(y, np.zeros((A.shape[0], 0)), A, blocks, degree, offset=nominal)
+
+
+def arclength_dependence(kappa: np.ndarray, s: np.ndarray, m: np.ndarray, degree: int, knots: int,
+                         s_degree: int, blocks: int) -> HeldoutChoice:
+    """A uniform bending law m(kappa) (``spline_basis(kappa, degree, knots)``) against one whose
+    spline coefficients are polynomials of degree ``s_degree`` in the arclength s; ``richer`` =
+    give the law s as an input."""
+    K = spline_basis(kappa, degree, knots)
+    S = poly_design(s, s_degree)
+    KS = np.einsum("ni,nj->nij", K, S).reshape(K.shape[0], -1)
+    return compare_heldout(m, K, KS, blocks, degree)
+
+
+def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[str, Any],
+                      segments: np.ndarray | None, applicable: bool) -> dict[str, Any]:
+    """Whether the learned bending law m takes the arclength s as an input (manifest
+    ``bending_arclength``): ``camera.learn.bending_arclength`` always / never, or with auto where
+    the law's samples vary along the rod by the held-out time blocks
+    (``arclength_dependence``: a regression spline in kappa against the same spline
+    with coefficients polynomial in s). Only for the local law m(kappa) (``bending_inputs`` a
+    subset without all five inputs) of a learned obj_m."""
+    setting = str(cam["bending_arclength"])
+    if not applicable:
+        return {"setting": setting, "used": False, "choice": None}
+    choice = None
+    if setting == "auto":
+        X, m = training_data(arr, params, "obj_m", None, segments)
+        S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
+        S = (S if segments is None else S[:, segments]).reshape(-1)
+        choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
+                                      int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
+    used = setting == "always" or (choice is not None and choice["richer"])
+    return {"setting": setting, "used": bool(used), "choice": choice}
