@@ -12,10 +12,6 @@ _MATERIAL_REC = ("seed", "rod", *_MATERIAL_SIM, "materials_study.theta0_deg", "m
                  "materials_study.camera_noise_m")
 
 
-def _material_case(wc):
-    return f"materials_study.cases.{wc.case}"
-
-
 rule material_data:
     input:
         code=code_closure("material_data.py"),
@@ -26,7 +22,7 @@ rule material_data:
     wildcard_constraints:
         case=_one_of(MATERIAL_CASES),
     params:
-        cfg=lambda wc: cfg_params(*_MATERIAL_REC, _material_case(wc)),
+        cfg=lambda wc: cfg_params(*_MATERIAL_REC, f"materials_study.cases.{wc.case}"),
     log:
         "logs/materials/data_{case}.log",
     benchmark:
@@ -85,7 +81,7 @@ rule material_score:
         source=_one_of(MATERIAL_INPUTS),
     params:
         cfg=lambda wc: cfg_params("rod", *_MATERIAL_SIM, "materials_study.test_deg",
-                                  "materials_study.rollout_t_end_s", _material_case(wc)),
+                                  "materials_study.rollout_t_end_s", f"materials_study.cases.{wc.case}"),
     log:
         "logs/materials/score_{case}_{source}.log",
     benchmark:

@@ -1,6 +1,6 @@
 """The materials study (docs/materials.md, "The materials study"): rules ``material_data``,
-``material_learn``, ``material_score`` and ``material_laws`` (config ``materials_study``;
-workflow/rules/materials.smk).
+``material_learn`` and ``material_score`` (config ``materials_study``;
+workflow/rules/materials.smk; the table and figures: ``commands.material_report``).
 
 Each case is a true rod: the config's ``rod`` with the case's ``rod.material`` overlay
 (``config.material_case_rod``). ``material_data`` records it released at rest from
@@ -9,8 +9,7 @@ Each case is a true rod: the config's ``rod`` with the case's ``rod.material`` o
 ``material_learn`` runs ``crgpr learn`` (objective features) on the full state or the camera
 record; ``material_score`` rolls the learned rod and the nominal rod (``rod`` without the
 overlay, the simulator) out at the test angles against the true rod (``report.metrics.accuracy``)
-and scores the learned bending law against the true one (``report.metrics.law_accuracy``);
-``material_laws`` gathers the rows into ``material_laws.csv`` and draws one figure per case.
+and scores the learned bending law against the true one (``report.metrics.law_accuracy``).
 """
 
 from __future__ import annotations
@@ -28,7 +27,7 @@ import pandas as pd
 from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import LAW_TABLE, learn, load_learned
 from crgpr.config import material_case_rod, rod_params
-from crgpr.io import read_parquet, write_csv, write_parquet
+from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.learned import frozen_after_divergence, rollout_members
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import segment_moment_law, straight_rod, strains
@@ -166,25 +165,3 @@ def material_score(cfg: dict[str, Any], case: str, source: str, model_dir: str, 
             "diverged_deg": [a for a, r in zip(angles, runs, strict=True) if r.diverged is not None]}
     write_parquet(pd.DataFrame(rows, columns=list(COLUMNS)), out, meta)
     write_parquet(pd.concat(tips, ignore_index=True)[list(TIP_COLUMNS)], tips_out, meta)
-
-
-def material_laws(cfg: dict[str, Any], cases: list[str], scores: list[str], tips: list[str],
-                  model_dirs: list[str], trains: list[str], out_csv: str, figures: list[str]) -> pd.DataFrame:
-    """Rule ``material_laws``: ``material_laws.csv`` (the score rows, case by case, input by input)
-    and one figure per case (``report.materials.material_figure``). ``scores``, ``tips`` and
-    ``model_dirs`` are ordered case-major over ``INPUTS``; ``trains`` and ``figures`` by case."""
-    from crgpr.report.materials import material_figure
-
-    n = len(INPUTS)
-    table = pd.concat([read_parquet(p) for p in scores], ignore_index=True)[list(COLUMNS)]
-    write_csv(table, out_csv)
-    nominal = rod_params(cfg)
-    for i, (case, train, fig) in enumerate(zip(cases, trains, figures, strict=True)):
-        truth = material_case_rod(cfg, case)
-        laws = {inp: read_parquet(Path(d) / LAW_TABLE) if (Path(d) / LAW_TABLE).is_file() else None
-                for inp, d in zip(INPUTS, model_dirs[i * n:(i + 1) * n], strict=True)}
-        tip = {inp: read_parquet(p) for inp, p in zip(INPUTS, tips[i * n:(i + 1) * n], strict=True)}
-        kappa = strains(trajectory_from_frame(read_parquet(train).assign(theta0_deg=math.nan), truth).q,
-                        truth)["kappa"]
-        material_figure(case, laws, tip, truth, nominal, kappa, table[table["case"] == case], fig)
-    return table

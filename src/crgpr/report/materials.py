@@ -34,6 +34,10 @@ def material_figure(case: str, laws: dict[str, pd.DataFrame | None], tips: dict[
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
     lo, hi = float(kappa.min()), float(kappa.max())
     x = np.linspace(lo, hi, 201)
+    true = segment_moment_law(truth, x)
+    for j, ls in ((0, "-"), (truth.N // 2, "-."), (truth.N - 1, ":")):
+        ax.plot(x, true[:, j], color="C3", ls=ls, lw=2.0,
+                label=f"true, s = {(j + 0.5) * truth.ds:.2f} m")
     for inp, tab in laws.items():
         if tab is None:
             continue
@@ -42,17 +46,13 @@ def material_figure(case: str, laws: dict[str, pd.DataFrame | None], tips: dict[
         ax.fill_between(xx, m - Z95 * s, m + Z95 * s, color=COLORS[inp], alpha=0.25)
         ax.plot(xx, m, color=COLORS[inp], label=f"learned, {inp} (95 % band)")
     ax.plot(x, nominal.EI * (x - nominal.kappa0), "k--", lw=1, label="nominal")
-    true = segment_moment_law(truth, x)
-    for j, ls in ((0, "-"), (truth.N // 2, "-."), (truth.N - 1, ":")):
-        ax.plot(x, true[:, j], color="C3", ls=ls, lw=1.2,
-                label=f"true, s = {(j + 0.5) * truth.ds:.2f} m")
     span = np.ptp(true)
     ax.set_xlim(lo, hi)
     ax.set_ylim(true.min() - 0.3 * span, true.max() + 0.3 * span)
     ax.set_xlabel(r"$\kappa$ [1/m]")
     ax.set_ylabel("m [N m]")
     agg = rows.groupby("input")[["law_rmse", "law_band_coverage"]].first()
-    ax.set_title(f"{case}: bending law; law RMSE / spread " + ", ".join(
+    ax.set_title(f"{case}: bending law\nlaw RMSE / spread: " + ", ".join(
         f"{i} {agg.loc[i, 'law_rmse']:.3g}" for i in agg.index), fontsize=8)
     ax.legend(fontsize=6)
     first = None
@@ -67,7 +67,7 @@ def material_figure(case: str, laws: dict[str, pd.DataFrame | None], tips: dict[
         e = d[d["model"] == "learned"]
         bx.plot(e["t"], e["tip_x"], color=COLORS[inp], lw=1, label=f"learned, {inp}")
     means = rows.groupby("input")[["rmse_theta", "nominal_rmse_theta"]].mean()
-    bx.set_title(f"rollout at {first:g} deg; mean RMSE(theta) over the test angles: " + ", ".join(
+    bx.set_title(f"rollout at {first:g} deg\nmean RMSE(theta) over the test angles: " + ", ".join(
         f"{i} {means.loc[i, 'rmse_theta']:.3g}" for i in means.index)
         + f", nominal {means['nominal_rmse_theta'].iloc[0]:.3g} rad", fontsize=8)
     bx.set_xlabel("t [s]")
