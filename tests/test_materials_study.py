@@ -112,6 +112,13 @@ def test_a_case_overlay_with_a_bad_law_is_one_config_error_naming_the_case():
         load_config(SMOKE, {"materials_study": {"camera_rate_hz": 300.0}})
 
 
+def test_a_case_is_the_linear_material_plus_its_keys_whatever_the_configs_own_material():
+    cfg = load_config(SMOKE, {"rod": {"material": {"bending_law": "exponential", "bending_beta": 0.05}}})
+    assert material_case_rod(cfg, "linear").material == Material()
+    assert material_case_rod(cfg, "graded").material == Material(
+        bending_law="exponential", bending_beta=0.05, stiffness_profile=((0.0, 1.5), (1.0, 0.6)))
+
+
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     """The study's rules on the smoke config, into a fresh directory."""

@@ -222,10 +222,11 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
 
 
 def material_case_rod(cfg: dict[str, Any], case: str) -> RodParams:
-    """The true rod of a materials-study case: ``rod`` with ``materials_study.cases.<case>``
-    merged over its ``rod.material``."""
+    """The true rod of a materials-study case: ``rod`` with ``rod.material`` replaced by
+    ``materials_study.cases.<case>`` (an overlay on the linear material: keys it omits keep the
+    linear defaults, whatever the config's own ``rod.material``)."""
     rod = copy.deepcopy(cfg["rod"])
-    rod["material"] = {**rod.get("material", {}), **cfg["materials_study"]["cases"][case]}
+    rod["material"] = copy.deepcopy(cfg["materials_study"]["cases"][case])
     return RodParams.from_dict(rod)
 
 

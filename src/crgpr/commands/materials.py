@@ -2,13 +2,13 @@
 ``material_learn`` and ``material_score`` (config ``materials_study``;
 workflow/rules/materials.smk; the table and figures: ``commands.material_report``).
 
-Each case is a true rod: the config's ``rod`` with the case's ``rod.material`` overlay
-(``config.material_case_rod``). ``material_data`` records it released at rest from
+Each case is a true rod: the config's ``rod`` with the case's ``rod.material`` (over the linear
+defaults; ``config.material_case_rod``). ``material_data`` records it released at rest from
 ``theta0_deg`` (the full state, and every node's positions at ``camera_rate_hz`` with
 ``camera_noise_m`` Gaussian noise) and at every ``test_deg`` over ``rollout_t_end_s``;
 ``material_learn`` runs ``crgpr learn`` (objective features) on the full state or the camera
-record; ``material_score`` rolls the learned rod and the nominal rod (``rod`` without the
-overlay, the simulator) out at the test angles against the true rod (``report.metrics.accuracy``)
+record; ``material_score`` rolls the learned rod and the nominal rod (the config's ``rod``
+as it is, the simulator) out at the test angles against the true rod (``report.metrics.accuracy``)
 and scores the learned bending law against the true one (``report.metrics.law_accuracy``).
 """
 
