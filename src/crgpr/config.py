@@ -208,6 +208,8 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
                 raise ConfigError(f"{source}: control.control_rate_hz = {ctl['control_rate_hz']}: one sample "
                                   f"must be a whole number of time steps ({step:g} s, simulation.dt_s and "
                                   "control.study.fine_dt_factor)")
+    if "materials_study" in cfg:
+        _check_materials_study(cfg, source)
     if "uq" in cfg:
         from crgpr.uq.settings import UQSettings
 
@@ -217,6 +219,38 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
             raise ConfigError(f"{source}: uq.methods {unknown} are neither keys of rollouts.methods nor "
                               f"{CAMERA_METHOD!r} (the model `crgpr learn` trains from the camera data)")
         UQSettings.from_section(cfg["uq"])
+
+
+def material_case_rod(cfg: dict[str, Any], case: str) -> RodParams:
+    """The true rod of a materials-study case: ``rod`` with ``rod.material`` replaced by
+    ``materials_study.cases.<case>`` (an overlay on the linear material: keys it omits keep the
+    linear defaults, whatever the config's own ``rod.material``)."""
+    rod = copy.deepcopy(cfg["rod"])
+    rod["material"] = copy.deepcopy(cfg["materials_study"]["cases"][case])
+    return RodParams.from_dict(rod)
+
+
+def _check_materials_study(cfg: dict[str, Any], source: str) -> None:
+    """Every case's true rod is valid on the config's scheme and time step, and the camera rate
+    divides the record rate."""
+    ms = cfg["materials_study"]
+    for case in ms["cases"]:
+        key = f"materials_study.cases.{case}"
+        try:
+            params = material_case_rod(cfg, case)
+        except (TypeError, ValueError, KeyError) as exc:
+            raise ConfigError(f"{source}: {key}: {_rod_message(exc)}") from exc
+        check_material_scheme(params, ms["scheme"], f"{source}: {key}")
+        check_time_grid(params, cfg["simulation"], f"{source}: {key}")
+    sim = cfg["simulation"]
+    every = 1.0 / (float(ms["camera_rate_hz"]) * float(sim["dt_s"]) * int(sim["record_every"]))
+    if round(every) < 1 or abs(every - round(every)) > 1e-6 * every:
+        raise ConfigError(f"{source}: materials_study.camera_rate_hz = {ms['camera_rate_hz']}: one frame "
+                          "must be a whole number of records (simulation.dt_s x simulation.record_every)")
+    for key in ("t_end_s", "rollout_t_end_s"):
+        n = float(ms[key]) / float(sim["dt_s"])
+        if abs(n - round(n)) > 1e-6 * n:
+            raise ConfigError(f"{source}: materials_study.{key} / simulation.dt_s = {n:g} is not an integer")
 
 
 def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> dict[str, Any]:

@@ -14,23 +14,26 @@ from crgpr.report.config_doc import config_markdown
 
 
 def schema_sections(main: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Each section schema the main schema references, at any depth (``sections/<name>.schema.yaml``)."""
+    """Each section schema the main schema references, at any depth (``sections/<name>.schema.yaml``;
+    a section's own ``$ref`` is relative to its folder, as the validator resolves it), keyed by
+    the ``$ref`` as written."""
     base = schema_path().parent
     sections: dict[str, dict[str, Any]] = {}
 
-    def walk(node: Any) -> None:
+    def walk(node: Any, folder: Path) -> None:
         if isinstance(node, dict):
             ref = node.get("$ref")
             if isinstance(ref, str) and not ref.startswith("#") and ref not in sections:
-                sections[ref] = yaml.safe_load((base / ref).read_text(encoding="utf-8"))
-                walk(sections[ref])
+                path = folder / ref
+                sections[ref] = yaml.safe_load(path.read_text(encoding="utf-8"))
+                walk(sections[ref], path.parent)
             for value in node.values():
-                walk(value)
+                walk(value, folder)
         elif isinstance(node, list):
             for value in node:
-                walk(value)
+                walk(value, folder)
 
-    walk(main)
+    walk(main, base)
     return sections
 
 

@@ -189,6 +189,15 @@ def strains(q: np.ndarray, params: RodParams) -> dict[str, np.ndarray]:
     }
 
 
+def segment_moment_law(params: RodParams, kappa: np.ndarray) -> np.ndarray:
+    """The true bending law m(kappa, s_j) [N m] of every segment j at the curvatures ``kappa``
+    (n,): (n, N), each segment with its own EI(s_j) and rest curvature kappa^0(s_j) (eqs. (5),
+    (10) with the material's law, docs/materials.md; the elastic part: Kelvin-Voigt excluded)."""
+    kappa = np.asarray(kappa, dtype=float)[:, None]
+    dk = kappa - (params.kappa0 + segment_rest_curvature(params))[None, :]
+    return bending_moment(params.material.law_vector(), segment_EI(params), dk, params.nonlinear_stiffness)
+
+
 def variational_derivative(q: np.ndarray, p: np.ndarray, params: RodParams) -> np.ndarray:
     """Discrete H_z = [dH/dx, dH/dy, dH/dtheta, p_x/rhoA, p_y/rhoA, p_theta/rhoI] per node.
 

@@ -1,0 +1,167 @@
+"""The materials study (docs/materials.md, "The materials study"): rules ``material_data``,
+``material_learn`` and ``material_score`` (config ``materials_study``;
+workflow/rules/materials.smk; the table and figures: ``commands.material_report``).
+
+Each case is a true rod: the config's ``rod`` with the case's ``rod.material`` (over the linear
+defaults; ``config.material_case_rod``). ``material_data`` records it released at rest from
+``theta0_deg`` (the full state, and every node's positions at ``camera_rate_hz`` with
+``camera_noise_m`` Gaussian noise) and at every ``test_deg`` over ``rollout_t_end_s``;
+``material_learn`` runs ``crgpr learn`` (objective features) on the full state or the camera
+record; ``material_score`` rolls the learned rod and the nominal rod (the config's ``rod``
+as it is, the simulator) out at the test angles against the true rod (``report.metrics.accuracy``)
+and scores the learned bending law against the true one (``report.metrics.law_accuracy``).
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import zlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from crgpr.commands.camera import camera_frame
+from crgpr.commands.learn import LAW_TABLE, learn, load_learned
+from crgpr.config import material_case_rod, rod_params
+from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.learned import frozen_after_divergence, rollout_members
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.rod import segment_moment_law, straight_rod, strains
+from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame, trajectory_from_frame
+from crgpr.report.metrics import accuracy, law_accuracy
+
+log = logging.getLogger(__name__)
+
+INPUTS: tuple[str, ...] = ("full_state", "camera")
+COLUMNS: tuple[str, ...] = ("case", "input", "theta0_deg", "rmse_theta", "tip_rmse_over_L",
+                            "nominal_rmse_theta", "ratio_to_nominal", "law_rmse", "law_band_coverage")
+TIP_COLUMNS: tuple[str, ...] = ("model", "theta0_deg", "t", "tip_x", "tip_y")
+
+
+def study_settings(cfg: dict[str, Any], t_end: float) -> SimSettings:
+    """The config's step and record interval, the study's scheme, over ``t_end`` [s]."""
+    sim = cfg["simulation"]
+    return SimSettings(dt=float(sim["dt_s"]), t_end=float(t_end), record_every=int(sim["record_every"]),
+                       scheme=str(cfg["materials_study"]["scheme"]))
+
+
+def camera_seed(seed: int, case: str) -> np.random.Generator:
+    """The camera noise generator of one case (seeded by the config's ``seed`` and the case name)."""
+    return np.random.default_rng([int(seed), zlib.crc32(f"materials:{case}".encode())])
+
+
+def material_data(cfg: dict[str, Any], case: str, train_out: str, camera_out: str, test_out: str) -> None:
+    """Rule ``material_data``: the true rod's training record at ``theta0_deg`` (full state,
+    ``crgpr learn``'s full-state format), its camera positions, and its records at ``test_deg``."""
+    ms = cfg["materials_study"]
+    truth = material_case_rod(cfg, case)
+    meta = {"kind": "material_record", "case": case, "rod": truth.to_dict()}
+    tr = simulate(float(ms["theta0_deg"]), truth, study_settings(cfg, float(ms["t_end_s"])))
+    every = int(round(1.0 / (float(ms["camera_rate_hz"]) * float(np.median(np.diff(tr.t))))))
+    write_parquet(camera_frame(tr.t[::every], tr.q[::every], float(ms["camera_noise_m"]),
+                               camera_seed(int(cfg["seed"]), case)), camera_out,
+                  {**meta, "kind": "measured", "noise_std_m": float(ms["camera_noise_m"]),
+                   "rate_hz": float(ms["camera_rate_hz"])})
+    write_parquet(trajectory_frame(tr).drop(columns=["theta0_deg", "s"]), train_out, meta)
+    st = study_settings(cfg, float(ms["rollout_t_end_s"]))
+    frames = [trajectory_frame(simulate(float(a), truth, st)) for a in ms["test_deg"]]
+    write_parquet(pd.concat(frames, ignore_index=True), test_out, meta)
+
+
+def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
+    """The config ``crgpr learn`` sees in the study: each gradient GP capped at ``n_train_max``
+    points and ``n_hyper_max`` for the likelihood search, the camera models on ``camera_n_t_out``
+    frames (the study's run-time budget)."""
+    out = copy.deepcopy(cfg)
+    ms = cfg["materials_study"]
+    gm = out["gradient_models"]
+    gm["n_hyper"] = min(int(gm["n_hyper"]), int(ms["n_hyper_max"]))
+    for group in ("models", "objective_models"):
+        for spec in gm[group].values():
+            spec["n_train"] = min(int(spec["n_train"]), int(ms["n_train_max"]))
+    out["camera"]["learn"]["n_t_out"] = int(ms["camera_n_t_out"])
+    return out
+
+
+def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str) -> None:
+    """Rule ``material_learn``: ``crgpr learn`` (objective features) on the full-state record
+    (prefilter ``materials_study.prefilter``) or the camera record (``camera_prefilter``)."""
+    ms = cfg["materials_study"]
+    if source not in INPUTS:
+        raise ValueError(f"input {source!r}: expected one of {INPUTS}")
+    learn(measured, out_dir, learn_config(cfg), "objective",
+          str(ms["prefilter"] if source == "full_state" else ms["camera_prefilter"]))
+
+
+def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory) -> dict[str, float]:
+    """``report.metrics.law_accuracy`` of a model directory's learned bending law m(kappa)
+    (``laws.parquet``, its covered range) against the true law of every segment at its own s
+    (``rod.segment_moment_law``), each segment compared where its curvature went in the training
+    record ``train``."""
+    path = Path(model_dir) / LAW_TABLE
+    nan = {"law_rmse": math.nan, "law_band_coverage": math.nan}
+    if not path.is_file():
+        return nan
+    tab = read_parquet(path)
+    d = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa") & tab["covered"]]
+    if d.empty:
+        return nan
+    x = d["x"].to_numpy(dtype=float)
+    kappa = strains(train.q, truth)["kappa"]  # (n_t, N)
+    where = (x[:, None] >= kappa.min(axis=0)[None, :]) & (x[:, None] <= kappa.max(axis=0)[None, :])
+    return law_accuracy(d["mean"].to_numpy(dtype=float), d["sd"].to_numpy(dtype=float),
+                        segment_moment_law(truth, x), where)
+
+
+def _tips(model: str, angle: float, tr: Trajectory) -> pd.DataFrame:
+    return pd.DataFrame({"model": model, "theta0_deg": float(angle), "t": tr.t, "tip_x": tr.q[:, -1, 0],
+                         "tip_y": tr.q[:, -1, 1]})
+
+
+def material_score(cfg: dict[str, Any], case: str, source: str, model_dir: str, train: str, test: str,
+                   out: str, tips_out: str) -> None:
+    """Rule ``material_score``: one row per test angle (``COLUMNS``) for one case and input, and
+    the tip paths of the learned rod, the nominal rod and the true rod (``TIP_COLUMNS``).
+
+    The learned rod is rolled out at every angle as one batch (``learning.learned.rollout_members``);
+    a rollout that leaves the physical range is scored by the project's one divergence policy
+    (``frozen_after_divergence``), so its row holds its error."""
+    ms = cfg["materials_study"]
+    angles = [float(a) for a in ms["test_deg"]]
+    st = study_settings(cfg, float(ms["rollout_t_end_s"]))
+    model, _ = load_learned(model_dir)
+    truth = material_case_rod(cfg, case)
+    nominal = rod_params(cfg)
+    q0 = np.stack([straight_rod(math.radians(a), model.params) for a in angles])
+    runs = rollout_members(lambda keys: model, q0, np.arange(len(angles)), model.params, st,
+                           f"materials study: {case}, {source} model")
+    gt_all = read_parquet(test)
+    laws = law_scores(model_dir, truth, trajectory_from_frame(read_parquet(train).assign(theta0_deg=math.nan),
+                                                              truth))
+    rows, tips = [], []
+    for a, run in zip(angles, runs, strict=True):
+        traj = Trajectory(a, run.t, run.q, run.p, model.params)
+        if run.diverged is not None:
+            log.warning("%s, %s: the learned rollout at %g deg left the physical range at t = %.3g s", case,
+                        source, a, run.diverged["t_s"])
+            traj = frozen_after_divergence(traj, st)
+        gt = gt_all[np.isclose(gt_all["theta0_deg"], a)]
+        nom = simulate(a, nominal, st)
+        acc = accuracy(gt, trajectory_frame(traj), truth.L0, test, f"{case} {source} rollout at {a:g} deg")
+        acc_n = accuracy(gt, trajectory_frame(nom), truth.L0, test, f"nominal rollout at {a:g} deg")
+        ratio = acc["rmse_theta"] / acc_n["rmse_theta"] if acc_n["rmse_theta"] > 0 else math.nan
+        rows.append({"case": case, "input": source, "theta0_deg": a, "rmse_theta": acc["rmse_theta"],
+                     "tip_rmse_over_L": acc["tip_rmse_over_L"], "nominal_rmse_theta": acc_n["rmse_theta"],
+                     "ratio_to_nominal": ratio, **laws})
+        tips += [_tips("learned", a, traj), _tips("nominal", a, nom),
+                 _tips("truth", a, trajectory_from_frame(gt, truth))]
+        log.info("%s, %s at %g deg: RMSE(theta) %.4g rad (nominal %.4g)", case, source, a, acc["rmse_theta"],
+                 acc_n["rmse_theta"])
+    meta = {"kind": "material_score", "case": case, "input": source, "model_dir": str(model_dir),
+            "diverged_deg": [a for a, r in zip(angles, runs, strict=True) if r.diverged is not None]}
+    write_parquet(pd.DataFrame(rows, columns=list(COLUMNS)), out, meta)
+    write_parquet(pd.concat(tips, ignore_index=True)[list(TIP_COLUMNS)], tips_out, meta)
