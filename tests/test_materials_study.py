@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from paper_rod import paper_rod
 
 from crgpr.commands.materials import COLUMNS, INPUTS
-from crgpr.config import ConfigError, load_config, material_case_rod
+from crgpr.config import ConfigError, load_config, material_case_rod, rod_params
 from crgpr.physics.material import Material
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import segment_moment_law, straight_rod, strains
@@ -153,3 +153,21 @@ def test_the_study_writes_one_row_per_case_input_and_angle(study):
         assert (study / "results" / "figures" / f"material_{case}.png").read_bytes()[:4] == b"\x89PNG"
         for source in INPUTS:
             assert (study / "benchmarks" / "materials" / f"learn_{case}_{source}.tsv").is_file()
+
+
+def test_a_nominal_bending_law_is_scored_as_the_nominal_rod_with_no_band(tmp_path):
+    """Where the data chose the nominal bending law (``obj_m`` not learned), the law scored is
+    EI (kappa - kappa0) with sd 0 for every segment: exact against a linear true rod, and its
+    zero-width band misses a true rod that is stiffer."""
+    from crgpr.learning.law_tables import bending_law_at_segments
+    from crgpr.physics.rod import segment_moment_law
+
+    params = rod_params(load_config(SMOKE))
+    x = np.linspace(-5.0, 5.0, 21)
+    mean, sd = bending_law_at_segments(tmp_path, ["obj_n1"], params, x, 100, 0)
+    assert mean.shape == sd.shape == (x.size, params.N) and not sd.any()
+    where = np.ones((x.size, params.N), bool)
+    exact = law_accuracy(mean, sd, segment_moment_law(params, x), where)
+    assert exact["law_rmse"] == pytest.approx(0.0, abs=1e-12) and exact["law_band_coverage"] == 1.0
+    stiffer = law_accuracy(mean, sd, segment_moment_law(params.replace(E=1.2 * params.E), x), where)
+    assert stiffer["law_rmse"] > 0.05 and stiffer["law_band_coverage"] < 0.1

@@ -80,8 +80,9 @@ rule material_score:
         case=_one_of(MATERIAL_CASES),
         source=_one_of(MATERIAL_INPUTS),
     params:
-        cfg=lambda wc: cfg_params("rod", *_MATERIAL_SIM, "materials_study.test_deg",
-                                  "materials_study.rollout_t_end_s", f"materials_study.cases.{wc.case}"),
+        cfg=lambda wc: cfg_params("seed", "rod", *_MATERIAL_SIM, "camera.learn.law_table",
+                                  "materials_study.test_deg", "materials_study.rollout_t_end_s",
+                                  f"materials_study.cases.{wc.case}"),
     log:
         "logs/materials/score_{case}_{source}.log",
     benchmark:

@@ -25,9 +25,10 @@ import numpy as np
 import pandas as pd
 
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import LAW_TABLE, learn, load_learned
+from crgpr.commands.learn import learn, load_learned, read_manifest
 from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.law_tables import bending_law_at_segments
 from crgpr.learning.learned import frozen_after_divergence, rollout_members
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import segment_moment_law, straight_rod, strains
@@ -97,24 +98,20 @@ def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str
           str(ms["prefilter"] if source == "full_state" else ms["camera_prefilter"]))
 
 
-def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory) -> dict[str, float]:
-    """``report.metrics.law_accuracy`` of a model directory's learned bending law m(kappa)
-    (``laws.parquet``, its covered range) against the true law of every segment at its own s
+def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_table: dict[str, Any],
+               seed: int) -> dict[str, float]:
+    """``report.metrics.law_accuracy`` of a model directory's bending law (learned, or the nominal
+    one where the data chose it; ``learning.law_tables.bending_law_at_segments``, each segment at
+    its own s where the law takes s) against the true law of every segment at its own s
     (``rod.segment_moment_law``), each segment compared where its curvature went in the training
-    record ``train``."""
-    path = Path(model_dir) / LAW_TABLE
-    nan = {"law_rmse": math.nan, "law_band_coverage": math.nan}
-    if not path.is_file():
-        return nan
-    tab = read_parquet(path)
-    d = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa") & tab["covered"]]
-    if d.empty:
-        return nan
-    x = d["x"].to_numpy(dtype=float)
+    record ``train`` (``law_table``: the config's ``camera.learn.law_table``, its sd settings)."""
+    man = read_manifest(model_dir)
     kappa = strains(train.q, truth)["kappa"]  # (n_t, N)
+    x = np.linspace(float(kappa.min()), float(kappa.max()), int(law_table["n_grid"]))
     where = (x[:, None] >= kappa.min(axis=0)[None, :]) & (x[:, None] <= kappa.max(axis=0)[None, :])
-    return law_accuracy(d["mean"].to_numpy(dtype=float), d["sd"].to_numpy(dtype=float),
-                        segment_moment_law(truth, x), where)
+    mean, sd = bending_law_at_segments(model_dir, list(man["models"]), RodParams.from_dict(man["rod"]), x,
+                                       int(law_table["max_points"]), seed)
+    return law_accuracy(mean, sd, segment_moment_law(truth, x), where)
 
 
 def _tips(model: str, angle: float, tr: Trajectory) -> pd.DataFrame:
@@ -141,7 +138,8 @@ def material_score(cfg: dict[str, Any], case: str, source: str, model_dir: str, 
                            f"materials study: {case}, {source} model")
     gt_all = read_parquet(test)
     laws = law_scores(model_dir, truth, trajectory_from_frame(read_parquet(train).assign(theta0_deg=math.nan),
-                                                              truth))
+                                                              truth),
+                      cfg["camera"]["learn"]["law_table"], int(cfg["seed"]))
     rows, tips = [], []
     for a, run in zip(angles, runs, strict=True):
         traj = Trajectory(a, run.t, run.q, run.p, model.params)

@@ -13,7 +13,8 @@ force and moment balance of eq. (13)), the principle ``learning.laws`` uses for 
   (blocks as independent units; the samples of one trajectory are correlated in time, so a
   per-sample criterion would take any systematic error of one record for a law). Where the
   data cannot tell them apart, the simpler law is kept, and so it is where its held-out error
-  is at round-off (below sqrt(machine epsilon) x the targets' rms: nothing left to learn).
+  is at round-off (below sqrt(machine epsilon) x the targets' rms: nothing left to learn), and
+  where the record has too few samples to fit the richer law on all blocks but one.
 
 The two comparisons (``learned_or_nominal``, ``arclength_dependence``) differ only in the laws:
 
@@ -93,9 +94,14 @@ def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, b
     y = np.asarray(y, dtype=float).ravel()
     r = y if offset is None else y - np.asarray(offset, dtype=float).ravel()
     n = y.size
-    if blocks < 2 or n < blocks * (A_richer.shape[1] + 1):
-        raise ValueError(f"held-out blocks: {n} samples cannot fill {blocks} blocks of a law with "
-                         f"{A_richer.shape[1]} coefficients")
+    if blocks < 2:
+        raise ValueError(f"held-out blocks: {blocks} blocks; at least 2 are needed")
+    if n < blocks * (A_richer.shape[1] + 1):
+        # too few samples to fit the richer law without a block: the data cannot show that it
+        # predicts better, so the simpler law is kept (its statistics NaN)
+        nan = float("nan")
+        return HeldoutChoice(richer=False, heldout_mse_simple=nan, heldout_mse_richer=nan, heldout_log_ratio=nan,
+                             heldout_log_ratio_se=nan, blocks=int(blocks), degree=int(degree))
     edges = np.linspace(0, n, blocks + 1).astype(int)
     e_s = e_r = 0.0
     d = []

@@ -108,3 +108,37 @@ def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, set
                              float(settings["pad"]), int(settings["max_points"]), seed,
                              int(settings["s_points"])))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
+
+
+def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
+                            max_points: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
+    segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
+    each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
+    (inputs other than kappa and s at their training medians); a nominal one (not in
+    ``trained``): EI (kappa - kappa0) of ``params`` with sd 0."""
+    from crgpr.learning.features import segment_arclength
+
+    kappa = np.asarray(kappa, dtype=float).ravel()
+    N = params.N
+    if "obj_m" not in trained:
+        m = params.EI * (kappa - params.kappa0)
+        return np.repeat(m[:, None], N, axis=1), np.zeros((kappa.size, N))
+    stem = Path(model_dir) / "obj_m"
+    features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
+    with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
+        med = np.median(np.asarray(f["X"], dtype=float), axis=0)
+    sd_gp = _sd_model(stem, max_points, seed)
+    s = segment_arclength(N, params.ds)
+    mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
+    for j in range(N):
+        X = np.tile(med, (kappa.size, 1))
+        X[:, features.index("kappa")] = kappa
+        if "s" in features:
+            X[:, features.index("s")] = s[j]
+        mean[:, j] = _mean(stem, X)
+        sd[:, j] = np.sqrt(np.asarray(sd_gp.predict(X, return_var=True)[1], dtype=float).ravel())
+        if "s" not in features:  # the same law for every segment
+            mean[:, j:], sd[:, j:] = mean[:, [j]], sd[:, [j]]
+            break
+    return mean, sd

@@ -126,15 +126,17 @@ def law_accuracy(mean: np.ndarray, sd: np.ndarray, truth: np.ndarray, where: np.
                  z: float = 1.959963984540054) -> dict[str, float]:
     """A learned law against the true one on a grid (the materials study, docs/materials.md).
 
-    ``mean``, ``sd`` (n,): the learned law's posterior mean and sd at n grid points; ``truth``
+    ``mean``, ``sd`` (n,) or (n, J): the learned law's posterior mean and sd at n grid points (per
+    segment where the law depends on s); ``truth``
     (n, J): the true law at the same points for each of J segments (its own s); ``where`` (n, J):
     the points compared. ``law_rmse`` = sqrt(mean((mean - truth)^2)) / (max truth - min truth)
     over ``where`` (the error in units of the true law's spread); ``law_band_coverage`` = the
     fraction of those points where |truth - mean| <= z sd (z = 1.96: the 95 % band). NaN for
     both if no point is compared or the true law is constant there."""
-    mean = np.asarray(mean, dtype=float)[:, None]
-    sd = np.asarray(sd, dtype=float)[:, None]
     truth = np.asarray(truth, dtype=float)
+    mean = np.asarray(mean, dtype=float)
+    sd = np.asarray(sd, dtype=float)
+    mean, sd = (a[:, None] if a.ndim == 1 else a for a in (mean, sd))
     where = np.broadcast_to(np.asarray(where, dtype=bool), truth.shape)
     err = np.broadcast_to(mean, truth.shape)[where] - truth[where]
     if err.size == 0 or np.ptp(truth[where]) <= 0:
