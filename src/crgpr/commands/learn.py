@@ -26,6 +26,11 @@ The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: 
 estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
 the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
 ``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``).
+
+A passive bending damping m_d = c dkappa/dt, c >= 0 (a viscoelastic rod's), is fitted jointly
+with an elastic law on the bending samples and kept only where held-out time blocks support it
+(``camera.learn.bending_damping``, ``learning.damping``); the elastic laws are then learned
+without it and the learned rod's R applies it (manifest ``bending_damping``).
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
+from crgpr.learning.damping import learn_bending_damping
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_tables import covered_ranges, law_tables
@@ -222,6 +228,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                  f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                                  "too noisy to learn a bending law")
             masks["obj_m"] = keep_m
+    damping = None
+    if features == "objective" and "obj_m" in trained:
+        # a passive bending damping c dkappa/dt from the same samples (learning/damping.py); where
+        # kept, every law below is learned from targets without it
+        arr, damping = learn_bending_damping(arr, params, masks["obj_m"], cam["bending_damping"])
     rest = None
     if sym == "auto" and features == "objective" and "obj_m" in trained:
         # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples
@@ -250,6 +261,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": sym if features == "objective" else None,
                 "rest_state": None if rest is None else rest.to_dict(),
+                "bending_damping": None if damping is None else damping.to_dict(),
                 "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
@@ -343,7 +355,13 @@ def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
     if man["features"] == "paper":
         return LearnedRod.from_dir(model_dir, "paper", params), man
     comps, center = learned_components(model_dir, man, lambda m: load_evaluator(Path(model_dir) / m))
-    return LearnedRod(comps, man["features"], params, center), man
+    return LearnedRod(comps, man["features"], params, center, learned_damping(man)), man
+
+
+def learned_damping(man: dict[str, Any]) -> float:
+    """The bending damping c [N m^2 s] a directory's manifest records (0: none learned or kept)."""
+    fit = man.get("bending_damping")
+    return 0.0 if not fit else float(fit["coefficient"])
 
 
 def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:
@@ -465,5 +483,5 @@ def _cli(args: Any) -> None:
           f") in {man['seconds']:.1f} s; written to {args.out}")
 
 
-__all__ = ["learn", "load_learned", "learned_components", "learned_models", "read_manifest", "rollout_models",
-           "try_rollout", "model_names"]
+__all__ = ["learn", "load_learned", "learned_components", "learned_damping", "learned_models",
+           "read_manifest", "rollout_models", "try_rollout", "model_names"]
