@@ -9,8 +9,9 @@ dkappa_j/dt = (omega_{j+1} - omega_j) / ds from the angular rates of the trainin
 * joint fit: m_j = sum_{k <= D} a_jk u^k + c dkappa_j/dt, u = (kappa - mean) / std, one
   elastic polynomial of degree D = ``degree`` per segment j (it absorbs a stiffness varying
   along s and the per-segment bias of the targets near the base, which a single law would
-  leave for c to explain), a single c for the rod, least squares with c >= 0 (one bound: the unconstrained optimum, or c = 0 and
-  the elastic polynomial alone where that optimum has c < 0), so R = zeta I + the damping's
+  leave for c to explain), a single c for the rod, least squares with c >= 0 (one bound: the
+  unconstrained optimum, or c = 0 and the elastic polynomials alone where that optimum has
+  c < 0), so R = zeta I + the damping's
   K = (c / ds) D^T D is positive semi-definite for every state (``physics.dissipation``);
 * decision by held-out contiguous time blocks, as ``learning.laws`` decides the symmetry: the
   samples (time-major rows) are cut into ``blocks`` blocks; each law, with and without the
