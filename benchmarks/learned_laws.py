@@ -22,6 +22,7 @@ kept under ``OUT/<name>_<input>/``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
 import time
@@ -49,7 +50,11 @@ def _set(cfg: dict, key: str, value: str) -> None:
     *path, last = key.split(".")
     for k in path:
         d = d[k]
-    d[last] = yaml.safe_load(value)
+    v = yaml.safe_load(value)
+    if isinstance(v, str):  # YAML 1.1 reads 5e-5 (no dot) as a string
+        with contextlib.suppress(ValueError):
+            v = float(v)
+    d[last] = v
 
 
 def main() -> None:

@@ -51,7 +51,7 @@ from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
-from crgpr.learning.damping import learn_bending_damping
+from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_tables import covered_ranges, law_tables
@@ -251,6 +251,9 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   columns=m_cols if name == "obj_m" else None,
                                   odd_about=odd if name == "obj_m" else None)
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
+    if damping is not None and damping.kept:
+        rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
+        damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
     laws = law_outputs(out, trained, params, cam["law_table"], seed)
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
@@ -269,6 +272,28 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
+
+
+def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
+                 features: str, nominal: list[str], trained: list[str], inputs: Inputs | None,
+                 ports: Ports | None) -> Callable[[float], float]:
+    """c -> RMSE of theta of the models just written to ``out`` with bending damping c, rolled out
+    from the training record's first frame (under its inputs) over the record
+    (``learning.damping.refine_by_rollout``)."""
+    man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
+    comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
+    t = arr["t"]
+    st = rollout_settings(cfg, params, float(t[-1] - t[0]))
+    st = replace(st, record_every=max(1, int(round(float(np.min(np.diff(t))) / st.dt))))
+    q0 = np.stack([arr["x"][0], arr["y"][0], arr["theta"][0]], axis=-1)
+    p0 = np.stack([arr[c][0] for c in MOMENTUM_COLUMNS], axis=-1)
+
+    def roll(c: float) -> Trajectory:
+        model = LearnedRod(comps, features, params, center, c)
+        return rollout(model, math.nan, st, "damping refinement", inputs=inputs, ports=ports,
+                       initial=(q0, p0, float(t[0])))
+
+    return record_rmse_theta(roll, t, arr["theta"])
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int
