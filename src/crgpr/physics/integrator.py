@@ -17,7 +17,9 @@ The Kelvin-Voigt bending damping of the missing-physics library (m += c dkappa/d
 linear coupling of neighbouring angular rates) is part of D: its exact linear flow
 omega <- P(dt/2) omega (``kelvin_voigt_propagator``) follows the diagonal damping in the same
 half-step; both are exact flows of commuting linear ODEs (the rotational zeta rate is the same
-at every node), so D stays exact, passive and unconditionally stable.
+at every node), so D stays exact, passive and unconditionally stable. The dissipative flows
+and their tangents live in ``physics.dissipation``; ``run_hamiltonian`` applies a learned
+bending damping (``learning.damping``) by the same Kelvin-Voigt flow.
 
 One implementation, ``run_verlet`` (the generic form: any F(q, p), V(q, p); the black-box
 baseline, which has no p/m structure, uses it directly), with two thin forms:
