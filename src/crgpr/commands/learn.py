@@ -277,23 +277,12 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
 def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                  features: str, nominal: list[str], trained: list[str], inputs: Inputs | None,
                  ports: Ports | None) -> Callable[[float], float]:
-    """c -> RMSE of theta of the models just written to ``out`` with bending damping c, rolled out
-    from the training record's first frame (under its inputs) over the record
-    (``learning.damping.refine_by_rollout``)."""
+    """c -> RMSE of theta of the models just written to ``out`` with bending damping c over the
+    training record (``learning.damping.record_rmse_theta``)."""
     man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
     comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
-    t = arr["t"]
-    st = rollout_settings(cfg, params, float(t[-1] - t[0]))
-    st = replace(st, record_every=max(1, int(round(float(np.min(np.diff(t))) / st.dt))))
-    q0 = np.stack([arr["x"][0], arr["y"][0], arr["theta"][0]], axis=-1)
-    p0 = np.stack([arr[c][0] for c in MOMENTUM_COLUMNS], axis=-1)
-
-    def roll(c: float) -> Trajectory:
-        model = LearnedRod(comps, features, params, center, c)
-        return rollout(model, math.nan, st, "damping refinement", inputs=inputs, ports=ports,
-                       initial=(q0, p0, float(t[0])))
-
-    return record_rmse_theta(roll, t, arr["theta"])
+    st = rollout_settings(cfg, params, float(arr["t"][-1] - arr["t"][0]))
+    return record_rmse_theta(comps, features, params, center, st, arr, inputs, ports)
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int

@@ -41,15 +41,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from crgpr.learning.gradient_models import training_data
+from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.physics.integrator import SimulationDiverged
-from crgpr.physics.params import RodParams
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import Ports
 from crgpr.physics.rod import node_weights
+from crgpr.physics.signals import Inputs
 
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 MODES: tuple[str, ...] = ("auto", "none")
@@ -224,15 +227,24 @@ def refine_by_rollout(fit: DampingFit, record_rmse: Callable[[float], float], se
                          "fit_rmse_theta": float(record_rmse(fit.c_fit))})
 
 
-def record_rmse_theta(roll: Callable[[float], Any], t: np.ndarray, theta: np.ndarray
-                      ) -> Callable[[float], float]:
-    """``refine_by_rollout``'s objective: c -> RMSE of theta over the free nodes 1..N between
-    ``roll(c)`` (a trajectory from the record's first frame, ``t``, ``q`` attributes) linearly
-    interpolated to the record's times ``t`` and the record's angles ``theta`` (n_t, N+1)."""
+def record_rmse_theta(components: dict[str, Any], features: str, params: RodParams, center: float | None,
+                      settings: SimSettings, arr: dict[str, np.ndarray], inputs: Inputs | None = None,
+                      ports: Ports | None = None) -> Callable[[float], float]:
+    """``refine_by_rollout``'s objective: c -> RMSE of theta over the free nodes 1..N between the
+    learned rod of ``components`` with bending damping c, rolled out (``settings``' dt, under the
+    record's ``inputs``) from the first frame of the training arrays ``arr`` over the record and
+    linearly interpolated to its times, and the record's angles; inf where it diverges."""
+    t, theta = arr["t"], arr["theta"]
+    st = replace(settings, t_end=float(t[-1] - t[0]),
+                 record_every=max(1, int(round(float(np.min(np.diff(t))) / settings.dt))))
+    q0 = np.stack([arr["x"][0], arr["y"][0], theta[0]], axis=-1)
+    p0 = np.stack([arr[c][0] for c in ("p_x", "p_y", "p_theta")], axis=-1)
 
     def rmse(c: float) -> float:
+        model = LearnedRod(components, features, params, center, c)
         try:
-            tr = roll(c)
+            tr = rollout(model, math.nan, st, "damping refinement", inputs=inputs, ports=ports,
+                         initial=(q0, p0, float(t[0])))
         except SimulationDiverged:
             return math.inf
         th = np.stack([np.interp(t, tr.t, tr.q[:, i, 2]) for i in range(1, theta.shape[1])], axis=-1)
