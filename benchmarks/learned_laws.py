@@ -4,6 +4,8 @@
         [--learn camera.learn.bending_symmetry=none] [--config config.yaml] [--out benchmarks/learned_laws]
     python benchmarks/learned_laws.py --name exponential --input full \
         --truth-set rod.material.bending_law=exponential --truth-set rod.material.bending_beta=0.1
+    python benchmarks/learned_laws.py --name kelvin_voigt --truth-set rod.material.kelvin_voigt=5e-5 \
+        --input full
 
 The true rod is the config's ``rod`` with the ``--truth-set`` config overlays (dotted keys under
 ``rod``, YAML values: ``rod.material`` laws and profiles, docs/materials.md) and then the
@@ -22,6 +24,7 @@ kept under ``OUT/<name>_<input>/``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
 import time
@@ -49,7 +52,11 @@ def _set(cfg: dict, key: str, value: str) -> None:
     *path, last = key.split(".")
     for k in path:
         d = d[k]
-    d[last] = yaml.safe_load(value)
+    v = yaml.safe_load(value)
+    if isinstance(v, str):  # YAML 1.1 reads 5e-5 (no dot) as a string
+        with contextlib.suppress(ValueError):
+            v = float(v)
+    d[last] = v
 
 
 def main() -> None:
@@ -116,7 +123,7 @@ def main() -> None:
     nom_mean = row["nominal_mean_rmse_theta"]
     row["ratio_to_nominal"] = row["mean_rmse_theta"] / nom_mean if nom_mean > 0 else float("nan")
     for k in ("bending_odd_about", "rest_state", "nominal_laws", "models", "law_choice", "bending_inputs",
-              "bending_arclength"):
+              "bending_arclength", "bending_damping"):
         if k in man:
             row[k] = json.dumps(man[k])
     print(json.dumps(row, indent=1))

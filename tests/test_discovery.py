@@ -23,7 +23,7 @@ from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS
 from crgpr.discovery.residual import residual
 from crgpr.discovery.synthetic import find_case, make_measured
 from crgpr.io import output_lock, write_parquet
-from crgpr.physics.integrator import kelvin_voigt_propagator
+from crgpr.physics.dissipation import kelvin_voigt_propagator
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights
 from crgpr.physics.simulate import energy, simulate, velocities

@@ -30,6 +30,11 @@ The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: 
 estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
 the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
 ``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``).
+
+A passive bending damping m_d = c dkappa/dt, c >= 0 (a viscoelastic rod's), is fitted jointly
+with an elastic law on the bending samples and kept only where held-out time blocks support it
+(``camera.learn.bending_damping``, ``learning.damping``); the elastic laws are then learned
+without it and the learned rod's R applies it (manifest ``bending_damping``).
 """
 
 from __future__ import annotations
@@ -50,6 +55,7 @@ from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
+from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, learned_or_nominal
@@ -194,8 +200,6 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         spec = cfg_m["gradient_models"]["models"][m]
         spec["sigma_n_min"] = max(float(spec["sigma_n_min"]), float(cam["momentum_sigma_n_min"]))
     trim = int(cam["trim_ends"]) if kind == "positions" else 0
-    grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim)
-    trained = [n for n in names if n not in {NOMINAL_LAWS[k] for k in grey["nominal_laws"]}]
     # the bending law's inputs (objective features): camera.learn.bending_inputs; the end segments
     # (trim_ends) are left out of the laws whose inputs hold the derived shear nu2, which the
     # extrapolated end angles corrupt (learning/camera.py)
@@ -210,24 +214,34 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         raise ConfigError(f"camera.learn.bending_symmetry: {sym} needs camera.learn.bending_inputs: [kappa]")
     if sym == "odd" and features == "objective":
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
-    trims = {n: trim for n in trained}
-    masks = {n: inner_segments(params.N, trim) for n in trained}
+    local_m = m_cols is not None and "nu2" not in bend
+    m_mask = inner_segments(params.N, 0 if local_m else trim)
     keep_m, snr_m = None, None
-    if m_cols is not None and "nu2" not in bend:
-        trims["obj_m"] = 0
-        masks["obj_m"] = inner_segments(params.N, 0)
+    noise = state_report.get("kappa_noise_per_segment")
+    if local_m and noise is not None:
         # the clamped angle fit knows each segment's curvature noise: the bending law keeps the
         # segments whose curvature SNR reaches camera.learn.snr_min (the tip's extrapolated ones do not)
-        noise = state_report.get("kappa_noise_per_segment")
-        if noise is not None and "obj_m" in trained:
-            m_tgt = training_data(arr, params, "obj_m", None)[1].reshape(arr["x"].shape[0], params.N)
-            snr_m = segment_curvature_snr(m_tgt, params.EI, np.array(noise, dtype=float))
-            keep_m = snr_m >= float(cam["snr_min"])
-            if keep_m.sum() < 2:
-                raise ValueError(f"{measured}: the positions resolve the curvature of {int(keep_m.sum())} "
-                                 f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
-                                 "too noisy to learn a bending law")
-            masks["obj_m"] = keep_m
+        m_tgt = training_data(arr, params, "obj_m", None)[1].reshape(arr["x"].shape[0], params.N)
+        snr_m = segment_curvature_snr(m_tgt, params.EI, np.array(noise, dtype=float))
+        keep_m = snr_m >= float(cam["snr_min"])
+        m_mask = keep_m
+    damping = None
+    if features == "objective" and m_mask.sum() >= 2:
+        # a passive bending damping c dkappa/dt from the bending law's samples (learning/damping.py),
+        # decided before the laws are: where kept, every law (and its learned-or-nominal choice) is
+        # learned from targets without it
+        arr, damping = learn_bending_damping(arr, params, m_mask, cam["bending_damping"])
+    grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim)
+    trained = [n for n in names if n not in {NOMINAL_LAWS[k] for k in grey["nominal_laws"]}]
+    trims = {n: trim for n in trained}
+    masks = {n: inner_segments(params.N, trim) for n in trained}
+    if local_m and "obj_m" in trained:
+        trims["obj_m"] = 0
+        masks["obj_m"] = m_mask
+        if keep_m is not None and keep_m.sum() < 2:
+            raise ValueError(f"{measured}: the positions resolve the curvature of {int(keep_m.sum())} "
+                             f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
+                             "too noisy to learn a bending law")
     along_s = bending_arclength(arr, params, cam, masks.get("obj_m"),
                                 features == "objective" and "obj_m" in trained and m_cols is not None)
     rest = None
@@ -250,6 +264,9 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   odd_about=odd if name == "obj_m" else None,
                                   arclength=name == "obj_m" and along_s["used"])
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
+    if damping is not None and damping.kept:
+        rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
+        damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
     laws = law_outputs(out, trained, params, cam["law_table"], seed)
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
@@ -260,6 +277,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": sym if features == "objective" else None,
                 "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,
+                "bending_damping": None if damping is None else damping.to_dict(),
                 "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
@@ -267,6 +285,17 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "seconds": time.perf_counter() - t_start, "code_version": code_version()}
     write_json(manifest, out / MANIFEST)
     return manifest
+
+
+def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
+                 features: str, nominal: list[str], trained: list[str], inputs: Inputs | None,
+                 ports: Ports | None) -> Callable[[float], float]:
+    """c -> RMSE of theta of the models just written to ``out`` with bending damping c over the
+    training record (``learning.damping.record_rmse_theta``)."""
+    man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
+    comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
+    st = rollout_settings(cfg, params, float(arr["t"][-1] - arr["t"][0]))
+    return record_rmse_theta(comps, features, params, center, st, arr, inputs, ports)
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int
@@ -369,7 +398,13 @@ def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
     if man["features"] == "paper":
         return LearnedRod.from_dir(model_dir, "paper", params), man
     comps, center = learned_components(model_dir, man, lambda m: load_evaluator(Path(model_dir) / m))
-    return LearnedRod(comps, man["features"], params, center), man
+    return LearnedRod(comps, man["features"], params, center, learned_damping(man)), man
+
+
+def learned_damping(man: dict[str, Any]) -> float:
+    """The bending damping c [N m^2 s] a directory's manifest records (0: none learned or kept)."""
+    fit = man.get("bending_damping")
+    return 0.0 if not fit else float(fit["coefficient"])
 
 
 def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:
@@ -491,5 +526,5 @@ def _cli(args: Any) -> None:
           f") in {man['seconds']:.1f} s; written to {args.out}")
 
 
-__all__ = ["learn", "load_learned", "learned_components", "learned_models", "read_manifest", "rollout_models",
-           "try_rollout", "model_names"]
+__all__ = ["learn", "load_learned", "learned_components", "learned_damping", "learned_models",
+           "read_manifest", "rollout_models", "try_rollout", "model_names"]

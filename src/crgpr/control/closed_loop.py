@@ -18,7 +18,8 @@ import numpy as np
 
 from crgpr.control.policy import Policy, tip_pose, tip_pose_rate
 from crgpr.learning.learned import LearnedRod, rollout
-from crgpr.physics.integrator import kelvin_voigt_propagator, run_rod
+from crgpr.physics.dissipation import kelvin_voigt_propagator
+from crgpr.physics.integrator import run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
 from crgpr.physics.rod import free_mask, masses

@@ -20,7 +20,8 @@ import pandas as pd
 
 from crgpr.discovery.effects import effect_params
 from crgpr.measured.kinematics import marker_positions
-from crgpr.physics.integrator import kelvin_voigt_propagator, run_generic, run_rod
+from crgpr.physics.dissipation import kelvin_voigt_propagator
+from crgpr.physics.integrator import run_generic, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, segment_EI, straight_rod
 from crgpr.physics.simulate import dissipation_coefficients, rod_kernel_args, simulate

@@ -117,13 +117,17 @@ def hz_targets(arr: dict[str, np.ndarray], params: RodParams) -> np.ndarray:
     """H_z = (J - R)^-1 (dz/dt - G u) per node (n_t, N+1, 6), eq. (13).
 
     G u is gravity plus, where ``arr`` carries it, the actuation inputs' ``G_u`` (n_t, N+1, 3)
-    per unit length (``physics.ports``)."""
+    per unit length (``physics.ports``); ``damping_torque`` (same shape), a learned bending
+    damping's nodal couples (``learning.damping``), is booked the same way, as a known force, so
+    that the elastic targets no longer hold it."""
     hz = np.empty((*arr["x"].shape, 6))
     hp = np.stack([arr["dx_dt"], arr["dy_dt"], arr["dtheta_dt"]], axis=-1)
     dp = np.stack([arr["dp_x_dt"], arr["dp_y_dt"], arr["dp_theta_dt"]], axis=-1)
     gu = np.array([0.0, -params.rhoA * params.g, 0.0])
     if "G_u" in arr:
         gu = gu + arr["G_u"]
+    if "damping_torque" in arr:
+        gu = gu + arr["damping_torque"]
     hz[..., 3:] = hp
     hz[..., :3] = -(dp - gu) - params.zeta * hp
     return hz

@@ -19,8 +19,10 @@ the exact posterior mean over all n points with truncated kernel sums, or the DT
 paper_table2``, models in ``results/models/{prefilter}_paper_hyp``).
 
 Energy of the learned model: E(t) = H_z_hat^T R H_z_hat = zeta sum_i w_i ds |H_p_hat|^2 (the
-dissipated power, paper Fig. 5). The learned force field -H_q_hat need not be a gradient (the
-GPs are independent), so the learned stored energy is the path integral along the rollout,
+dissipated power, paper Fig. 5), plus sum_j ds c (dkappa_j/dt)^2 of a learned bending damping
+c >= 0 (``learning.damping``, ``physics.dissipation``; dkappa/dt from H_p_theta). The learned
+force field -H_q_hat need not be a gradient (the GPs are independent), so the learned stored
+energy is the path integral along the rollout,
 H_hat(t) = int H_z_hat . dz, which obeys dH_hat/dt = -E + y^T u exactly because J is skew
 (eq. (7)). ``learned_energy`` books it with the integrator's own steps: the work of -H_q_hat +
 gravity along every drift (``Integration.force_work``), the kinetic energy int_0^p H_p_hat as a
@@ -49,6 +51,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
+from crgpr.physics.dissipation import bending_power, kelvin_voigt_propagator
 from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
@@ -81,11 +84,13 @@ class LearnedRod:
     ``q_x, q_y, dH_dtheta`` (features 'paper') or ``obj_n1, obj_n2, obj_m`` (features
     'objective'), plus ``dH_dp_x, dH_dp_y, dH_dp_theta``. Any evaluator works: compiled GP
     means (``from_dir``), posterior samples, analytic oracles. States may carry leading batch
-    axes (..., N+1, 3) when the components do.
+    axes (..., N+1, 3) when the components do. ``damping``: the learned Kelvin-Voigt bending
+    damping c >= 0 [N m^2 s] (m_d = c dkappa/dt on every segment, part of R, not of H_z;
+    ``learning.damping``); 0: the nominal R = zeta I alone.
     """
 
     def __init__(self, components: Mapping[str, Component], features: str, params: RodParams,
-                 theta_center: float | None = None):
+                 theta_center: float | None = None, damping: float = 0.0):
         names = {"paper": PAPER_COMPONENTS, "objective": OBJECTIVE_COMPONENTS}.get(features)
         if names is None:
             raise ConfigError(f"unknown feature set {features!r}; expected 'paper' or 'objective'")
@@ -99,6 +104,9 @@ class LearnedRod:
         self.wds = node_weights(params.N) * params.ds
         self.hp = [self.components[m] for m in MOMENTUM_MODELS]
         self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
+        if not (math.isfinite(damping) and damping >= 0):
+            raise ValueError(f"learned bending damping c = {damping!r}: must be finite and >= 0")
+        self.damping = float(damping)
 
     @classmethod
     def from_dir(cls, model_dir: str | Path, features: str, params: RodParams,
@@ -156,6 +164,25 @@ class LearnedRod:
             out[..., k] = self.hp[k].slope(p[..., k])
         return out
 
+    def bending_flow(self, h: float) -> tuple[float, float, np.ndarray] | None:
+        """``run_hamiltonian``'s ``bending`` argument for damping half-steps of length h: (c, ds,
+        the exact flow over h for H_p_theta = p_theta / (rho I)); None without learned damping."""
+        if self.damping == 0.0:
+            return None
+        P = self.params
+        m_r = P.rhoI * self.wds
+        return self.damping, P.ds, kelvin_voigt_propagator(self.damping, P.ds, m_r, free_mask(P)[:, 2], h)
+
+    def dissipation_rate(self, p: np.ndarray) -> np.ndarray:
+        """E = H_z^T R H_z (...) [W] at momenta p (..., N+1, 3): zeta sum_i w_i ds |H_p,i|^2 over the
+        free degrees of freedom plus the learned bending damping's sum_j ds c (dkappa_j/dt)^2."""
+        free = free_mask(self.params)
+        hp = self.velocity(p) * free
+        rate = self.params.zeta * (self.wds[:, None] * hp**2).sum(axis=(-2, -1))
+        if self.damping:
+            rate = rate + bending_power(hp[..., 2], self.damping, self.params.ds)
+        return rate
+
     def hz(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
         """H_z_hat (..., N+1, 6) per unit length."""
         return np.concatenate([-self.internal(q), self.velocity(p)], axis=-1)
@@ -192,7 +219,8 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
             return ports.nodal_forces(q, np.broadcast_to(u[k], (*q.shape[:-2], u.shape[1]))) * inv_wds
     out = run_hamiltonian(q0, np.zeros_like(q0) if p0 is None else p0, model.force, model.velocity,
                           free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
-                          model.wds, what, velocity_slope=model.velocity_slope, port=port)
+                          model.wds, what, velocity_slope=model.velocity_slope, port=port,
+                          bending=model.bending_flow(0.5 * settings.dt))
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
                       u=None if inputs is None else u[::settings.record_every], ports=ports,
@@ -237,8 +265,7 @@ def learned_energy(model: LearnedRod, traj: Trajectory, dt: float) -> pd.DataFra
     P = model.params
     free = free_mask(P)
     q, p = traj.q, traj.p
-    hp = model.velocity(p) * free
-    rate = P.zeta * (model.wds[:, None] * hp**2).sum(axis=(-2, -1))
+    rate = model.dissipation_rate(p)
     f = model.force(q) * free
     F = f
     if traj.input_work is not None:
@@ -362,7 +389,7 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
         try:
             out = run_hamiltonian(q, p, rod.force, rod.velocity, free_mask(P), P.zeta, dt, n_left, every,
                                   rod.wds, what, velocity_slope=rod.velocity_slope, length=length,
-                                  port=port_from(k0))
+                                  port=port_from(k0), bending=rod.bending_flow(0.5 * dt))
         except SimulationDiverged as exc:
             part = exc.partial
             if exc.members is None or len(exc.members) == 0 or part is None or len(part.t) == 0:

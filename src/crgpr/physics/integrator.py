@@ -17,7 +17,9 @@ The Kelvin-Voigt bending damping of the missing-physics library (m += c dkappa/d
 linear coupling of neighbouring angular rates) is part of D: its exact linear flow
 omega <- P(dt/2) omega (``kelvin_voigt_propagator``) follows the diagonal damping in the same
 half-step; both are exact flows of commuting linear ODEs (the rotational zeta rate is the same
-at every node), so D stays exact, passive and unconditionally stable.
+at every node), so D stays exact, passive and unconditionally stable. The dissipative flows
+and their tangents live in ``physics.dissipation``; ``run_hamiltonian`` applies a learned
+bending damping (``learning.damping``) by the same Kelvin-Voigt flow.
 
 One implementation, ``run_verlet`` (the generic form: any F(q, p), V(q, p); the black-box
 baseline, which has no p/m structure, uses it directly), with two thin forms:
@@ -51,6 +53,13 @@ import numpy as np
 from numba import njit
 
 from crgpr.physics.collocated import _collocated_forces, _nodal_forces
+from crgpr.physics.dissipation import (
+    _damp_exponentials,
+    _damp_factors,
+    _damp_tangent,
+    _kv_damp,
+    _kv_tangent,
+)
 from crgpr.physics.material import bend_law, stretch_law
 from crgpr.physics.params import SCHEMES
 from crgpr.physics.ports import _tip_load
@@ -96,128 +105,6 @@ class Integration:
     # step, the trapezoid of the force at the drift's ends dotted with the displacement; None
     # when not booked
     force_work: np.ndarray | None = None
-
-
-@njit(cache=True)
-def _damp_exponentials(lam_t, lam_r, h):
-    """The factors ft = exp(-lam_t h), fr = exp(-lam_r h) of the linear damping flow over time
-    h, computed once per run (``math.exp``, as the kernels always did)."""
-    n = lam_t.shape[0]
-    ft = np.empty(n)
-    fr = np.empty(n)
-    for i in range(n):
-        ft[i] = math.exp(-lam_t[i] * h)
-        fr[i] = math.exp(-lam_r[i] * h)
-    return ft, fr
-
-
-@njit(cache=True)
-def _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h):
-    """Exact dissipative flow over time h with the factors of ``_damp_exponentials`` (linear
-    rates) and the quadratic drag k_quad; returns kinetic energy removed [J]."""
-    n = v.shape[0]
-    lost = 0.0
-    for i in range(n):
-        ke0 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
-        v[i, 0] *= ft[i] * free[i, 0]
-        v[i, 1] *= ft[i] * free[i, 1]
-        v[i, 2] *= fr[i] * free[i, 2]
-        if k_quad[i] > 0.0:
-            sp = math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2)
-            fac = 1.0 / (1.0 + k_quad[i] * sp * h)
-            v[i, 0] *= fac
-            v[i, 1] *= fac
-        ke1 = 0.5 * m_t[i] * (v[i, 0] ** 2 + v[i, 1] ** 2) + 0.5 * m_r[i] * v[i, 2] ** 2
-        lost += ke0 - ke1
-    return lost
-
-
-# --- Kelvin-Voigt bending damping (missing-physics candidate ``internal_damping``) -------------
-def kelvin_voigt_propagator(c: float, ds: float, m_r: np.ndarray, free_rot: np.ndarray, h: float
-                            ) -> np.ndarray:
-    """Exact flow matrix P(h) of d omega/dt = -M_r^-1 K omega over a time h.
-
-    K = (c / ds) D^T D with D the (N, N+1) difference matrix, i.e. the nodal couples of the
-    segment moments m_j = c (omega_{j+1} - omega_j) / ds (Rayleigh dissipation
-    sum_j ds c kappa_dot_j^2 >= 0). Restricted to the free rotational DOFs (a clamped base
-    rate stays 0). P = M^-1/2 U exp(-h L) U^T M^1/2 with S = M^-1/2 K M^-1/2 = U L U^T, so P
-    is a contraction in the kinetic-energy norm for any h (passive, unconditionally stable).
-    Returns an (N+1, N+1) matrix; an empty (0, 0) array for c = 0 (no damping).
-    """
-    n = m_r.size
-    if c <= 0.0:
-        return np.zeros((0, 0))
-    D = np.diff(np.eye(n), axis=0)
-    K = (c / ds) * D.T @ D
-    f = np.nonzero(np.asarray(free_rot) > 0)[0]
-    P = np.zeros((n, n))
-    ms = np.sqrt(m_r[f])
-    S = K[np.ix_(f, f)] / np.outer(ms, ms)
-    lam, U = np.linalg.eigh(0.5 * (S + S.T))
-    P[np.ix_(f, f)] = (U * np.exp(-h * np.maximum(lam, 0.0))) @ U.T / ms[:, None] * ms[None, :]
-    return P
-
-
-@njit(cache=True)
-def _kv_damp(v, m_r, P):
-    """Apply the Kelvin-Voigt flow omega <- P omega; returns the rotational energy removed [J]."""
-    n = v.shape[0]
-    w = np.empty(n)
-    for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            acc += P[i, k] * v[k, 2]
-        w[i] = acc
-    lost = 0.0
-    for i in range(n):
-        lost += 0.5 * m_r[i] * (v[i, 2] ** 2 - w[i] ** 2)
-        v[i, 2] = w[i]
-    return lost
-
-
-@njit(cache=True)
-def _damp_tangent(v, dv, ft, fr, k_quad, free, h):
-    """Tangent of ``_damp_factors`` for directions dv (m, N+1, 3), taken at the velocities v
-    BEFORE the flow (call it before ``_damp_factors``): the linear decay, and the derivative of
-    the quadratic-drag factor 1 / (1 + k |v| h) along the direction."""
-    n = v.shape[0]
-    m = dv.shape[0]
-    for i in range(n):
-        a0 = ft[i] * free[i, 0]
-        a1 = ft[i] * free[i, 1]
-        a2 = fr[i] * free[i, 2]
-        vl0 = v[i, 0] * a0
-        vl1 = v[i, 1] * a1
-        sp = math.sqrt(vl0 * vl0 + vl1 * vl1)
-        drag = k_quad[i] > 0.0
-        fac = 1.0 / (1.0 + k_quad[i] * sp * h) if drag else 1.0
-        for a in range(m):
-            d0 = dv[a, i, 0] * a0
-            d1 = dv[a, i, 1] * a1
-            dv[a, i, 2] *= a2
-            if drag:
-                dfac = 0.0
-                if sp > 0.0:
-                    dfac = -k_quad[i] * h * fac * fac * (vl0 * d0 + vl1 * d1) / sp
-                d0, d1 = d0 * fac + vl0 * dfac, d1 * fac + vl1 * dfac
-            dv[a, i, 0] = d0
-            dv[a, i, 1] = d1
-
-
-@njit(cache=True)
-def _kv_tangent(dv, P):
-    """Tangent of ``_kv_damp`` (a linear flow): omega_a <- P omega_a for every direction."""
-    m = dv.shape[0]
-    n = dv.shape[1]
-    w = np.empty(n)
-    for a in range(m):
-        for i in range(n):
-            acc = 0.0
-            for k in range(n):
-                acc += P[i, k] * dv[a, k, 2]
-            w[i] = acc
-        for i in range(n):
-            dv[a, i, 2] = w[i]
 
 
 @njit(cache=True)
@@ -661,6 +548,7 @@ def run_hamiltonian(
     velocity_slope: Callable[[np.ndarray], np.ndarray] | None = None,
     length: float | None = None,
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
+    bending: tuple[float, float, np.ndarray] | None = None,
 ) -> Integration:
     """``run_verlet`` in (q, p) for a learned H_z (eq. (17), Sec. III-B step 4).
 
@@ -680,6 +568,13 @@ def run_hamiltonian(
     ``force`` and ``velocity`` do (several initial states, or a LearnedRod of posterior
     samples); ``dissipated`` is then per member (n_rec, ...). ``port(k, q)``: G(z) u per unit
     length at step k (``physics.ports``); its work (weighted by ``wds``) is ``input_work``.
+    ``bending`` = (c, ds, P): a learned Kelvin-Voigt bending damping m_d = c dkappa/dt
+    (``physics.dissipation``), applied after the zeta flow in each damping half-step as
+    p_theta <- P p_theta, P = ``kelvin_voigt_propagator`` over dt/2 (exact for H_p_theta =
+    p_theta / (rho I), a contraction in its kinetic energy); ``dissipated`` adds the kinetic
+    energy it removes, the integral of H_p_theta dp_theta along the flow (trapezoid in p: exact
+    for an affine H_p, so the same as ``run_rod``'s booking for the analytic one). (c and ds
+    are for the caller's power, ``dissipation.bending_power``.)
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -701,8 +596,20 @@ def run_hamiltonian(
         dp = fac * v0 * free
         p1 = p - dp
         v1 = velocity(p1)
+        # the energy the zeta flow removes, int H_p . dp along it (trapezoid in p: exact for an affine H_p)
+        lost = 0.5 * (wds[:, None] * (v0 + v1) * dp).sum(axis=(-2, -1))
+        if bending is not None:
+            P = bending[2]
+            pb = p1.copy()
+            pb[..., 2] = p1[..., 2] @ P.T
+            vb = velocity(pb)
+            # the kinetic energy removed, int H_p . dp along the flow (trapezoid in p: exact for
+            # an affine H_p, whatever the stiffness of the flow)
+            lost = lost - 0.5 * (wds * free[:, 2] * (v1[..., 2] + vb[..., 2])
+                                 * (pb[..., 2] - p1[..., 2])).sum(axis=-1)
+            p1, v1 = pb, vb
         last[:] = [p1, v1]
-        return p1, 0.5 * (wds[:, None] * (v0 + v1) * dp).sum(axis=(-2, -1))
+        return p1, lost
 
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=damp, length=length, what=what, port=port, port_weight=wds,

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from crgpr.io import frame_to_grid
-from crgpr.physics.integrator import Integration, kelvin_voigt_propagator, run_rod
+from crgpr.physics.dissipation import kelvin_voigt_propagator
+from crgpr.physics.integrator import Integration, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
 from crgpr.physics.rod import (
