@@ -100,8 +100,9 @@ def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, b
         # too few samples to fit the richer law without a block: the data cannot show that it
         # predicts better, so the simpler law is kept (its statistics NaN)
         nan = float("nan")
-        return HeldoutChoice(richer=False, heldout_mse_simple=nan, heldout_mse_richer=nan, heldout_log_ratio=nan,
-                             heldout_log_ratio_se=nan, blocks=int(blocks), degree=int(degree))
+        return HeldoutChoice(richer=False, heldout_mse_simple=nan, heldout_mse_richer=nan,
+                             heldout_log_ratio=nan, heldout_log_ratio_se=nan, blocks=int(blocks),
+                             degree=int(degree))
     edges = np.linspace(0, n, blocks + 1).astype(int)
     e_s = e_r = 0.0
     d = []
