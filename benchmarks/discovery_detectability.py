@@ -22,6 +22,7 @@ a wrong name). Writes
         [--effects tip_mass stiffness_scale rest_curvature] [--scales 0.1 0.3 1]
         [--coefficients stiffness_scale=-0.3,0.4] [--angles 85 60]
         [--markers 6 12] [--noise-mm 1 2] [--duration-s 1.0] [--fdr FILE] [--keep DIR]
+    python benchmarks/discovery_detectability.py --from-records A.csv B.csv [--out ...] [--fdr ...]
 """
 
 from __future__ import annotations
@@ -149,7 +150,14 @@ def main() -> None:
     ap.add_argument("--limits", default="results/tables/discovery_detectability_limits.csv")
     ap.add_argument("--fdr", default=None)
     ap.add_argument("--keep", default=None, help="keep each record's data and discover output here")
+    ap.add_argument("--from-records", nargs="+", default=None,
+                    help="no runs: concatenate these --out files of earlier runs into --out and summarise")
     args = ap.parse_args()
+    if args.from_records:
+        df = pd.concat([pd.read_csv(f) for f in args.from_records], ignore_index=True)
+        write_csv(df, args.out)
+        summarise(df, args.limits, args.fdr)
+        return
     limit_threads()
     cfg = load_config(args.config)
     d = cfg["discovery"]
@@ -169,11 +177,15 @@ def main() -> None:
                             rows.append(run_record(cfg, rod, work, eff, coef, k, ang, m, nz,
                                                    args.duration_s))
                             print(rows[-1], flush=True)
-    df = pd.DataFrame(rows)
-    write_csv(df, args.out)
-    write_csv(limits(df), args.limits)
-    if args.fdr:
-        write_csv(fdr(df), args.fdr)
+                            write_csv(pd.DataFrame(rows), args.out)  # after every record
+    summarise(pd.DataFrame(rows), args.limits, args.fdr)
+
+
+def summarise(df: pd.DataFrame, limits_out: str, fdr_out: str | None) -> None:
+    """Write the limits table and, if asked, the false-discovery summary of the records ``df``."""
+    write_csv(limits(df), limits_out)
+    if fdr_out:
+        write_csv(fdr(df), fdr_out)
 
 
 if __name__ == "__main__":
