@@ -18,7 +18,9 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    grid twice as fine with half the step, each with its own initial state; the difference
    of the two fitted trajectories, Richardson-scaled by 4/3 for a second-order scheme) and a
    model-form difference another rig or simulator can have (``floor.model_form_error``: the
-   fit with a clamp of finite length against the point clamp), added in quadrature.
+   fit with a clamp of finite length against the point clamp), added in quadrature. A named
+   model is judged against its own floor: the bootstrap around its own fitted trajectory and
+   its own discretisation error (``floor_of``).
 3. Name. The cut-moment residual of the data against the current model
    (``crgpr.discovery.residual``) is regressed on every candidate's signature; candidates enter
    by forward stepwise selection with the Bayesian information criterion of a heteroscedastic
