@@ -3,7 +3,7 @@
 The record is the config's ``camera_tip_mass`` case stretched to 2 s (6 markers at arbitrary
 s, mid-motion start, 2 mm noise at 200 Hz, drops, occlusions, outliers) plus the plain
 ``tip_mass`` case at the config's camera (every node, 250 Hz, 1 mm) for 2 s. Writes
-``benchmarks/discovery/discover_2s.tsv`` (case, seconds, verdict, named effects).
+``benchmarks/discovery_2s.tsv`` (case, seconds, verdict, named effects).
 
     python benchmarks/discovery_2s.py [--config config.yaml] [--cases tip_mass camera_tip_mass]
 """
@@ -36,7 +36,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--config", default="config.yaml")
     ap.add_argument("--cases", nargs="+", default=["tip_mass", "camera_tip_mass"])
-    ap.add_argument("--out", default="benchmarks/discovery/discover_2s.tsv")
+    ap.add_argument("--out", default="benchmarks/discovery_2s.tsv")
     args = ap.parse_args()
     limit_threads()
     cfg = load_config(args.config)
