@@ -215,25 +215,26 @@ def _signal_inputs():
 @pytest.mark.parametrize("actuated", [False, True])
 def test_energy_balance_of_a_learned_viscoelastic_rollout(actuated):
     """H(T) - H(0) = -dissipated + port work for the learned rod with its learned damping: the
-    dissipation booked by learned_energy includes the bending damping's, and the residual stays
-    within 1 % of the dissipated energy; booked as zeta I alone it does not. The dissipation
-    rate's trapezoid over the records falls short of the energy removed (the overdamped
-    short-wave modes are faster than the records), which is why the balance books the
-    integrator's exact flows."""
+    integrator books the energy the zeta flow and the bending damping's exact flow remove, and the
+    balance closes to round-off (the exact laws: an affine H_p). The bending damping's share is
+    real: the zeta part of the dissipation rate alone falls well short of the booked energy; and
+    the rate's trapezoid over the records falls short too (the overdamped short-wave modes are
+    faster than the records), which is why the balance books the integrator's flows."""
     P = paper_rod(N=10)
     model = exact_rod(P, damping=C_KV)
     kw = {"inputs": _signal_inputs(), "ports": Ports(0.005)} if actuated else {}
     roll = rollout(model, 125.0, GRID, **kw)
-    en = learned_energy(model, roll)
+    en = learned_energy(model, roll, GRID.dt)
     diss = en["dissipated"].to_numpy()
-    assert np.abs(en["balance_residual"]).max() < 1e-2 * diss[-1]
+    assert np.abs(en["balance_residual"]).max() < 1e-6 * diss[-1]
     if actuated:
         assert np.abs(roll.input_work).max() > 0.1 * diss[-1]  # the inputs do work
     rate = en["dissipation_rate"].to_numpy()
     trapezoid = float(np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(roll.t)))
     assert 0.5 * diss[-1] < trapezoid < 0.99 * diss[-1]
-    zeta_only = learned_energy(exact_rod(P), roll)  # the same trajectory, R = zeta I booked
-    assert np.abs(zeta_only["balance_residual"]).max() > 0.1 * diss[-1]
+    zeta_rate = exact_rod(P).dissipation_rate(roll.p)  # the same trajectory, R = zeta I only
+    zeta_part = float(np.sum(0.5 * (zeta_rate[1:] + zeta_rate[:-1]) * np.diff(roll.t)))
+    assert zeta_part < 0.9 * trapezoid
 
 
 def test_curvature_rates_are_the_segment_differences_of_the_angular_rates():

@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, learned_components, learned_models, load_learned, read_manifest
+from crgpr.commands.learn import (
+    learn,
+    learned_components,
+    learned_damping,
+    learned_models,
+    load_learned,
+    read_manifest,
+)
 from crgpr.commands.uq import uq_rollout_learned, uq_samples_learned
 from crgpr.config import ConfigError, load_config, validate_config
 from crgpr.io import read_metadata, read_parquet, write_parquet
@@ -45,6 +52,7 @@ def grey_box(tmp_path_factory, smoke_training_run) -> tuple[dict, Path]:
     assert man["nominal_laws"] == ["n1", "n2"] and man["rest_state"]["symmetric"]
     rest = man["rest_state"]  # the band contains the straight rod's 0: mirrored about the nominal 0
     assert rest["band_lo"] <= 0.0 <= rest["band_hi"] and man["bending_odd_about"] == 0.0
+    print("bending damping of the smoke camera model:", man["bending_damping"])
     return cfg, d
 
 
@@ -66,7 +74,8 @@ def test_learned_rod_with_zero_variance_samples_reproduces_the_mean_rollout(grey
             zero[m] = TabulatedSamples(a["table_x"], np.repeat(a["table_y"][None], S, axis=0))
     comps, center = learned_components(d / "model", man, zero.__getitem__)
     assert isinstance(comps["obj_n1"], NominalLaw) and isinstance(comps["obj_m"], SelectedInputs)
-    t, q, p, keep, div = rollout_samples(comps, "objective", mean.params, center, 125.0, SHORT)
+    t, q, p, keep, div = rollout_samples(comps, "objective", mean.params, center, 125.0, SHORT,
+                                         learned_damping(man))
     assert div == [] and list(keep) == list(range(S))
     np.testing.assert_array_equal(t, ref.t)
     assert np.abs(ref.q[-1] - ref.q[0]).max() > 1e-3  # the rod moved

@@ -16,14 +16,16 @@ CAM_MODEL_DIR = f"{RESULTS}/camera/models/main/{CAM_NOISE}mm_{CAM['method']['pre
 LEARNED_MODEL_DIRS[CAM_METHOD] = CAM_MODEL_DIR  # a `crgpr learn` directory: uq.smk samples it as a whole
 _CAM_CELLS = [(f"{n:g}", p, f) for n in CAM_ABL["noise_mm"] for p in CAM_ABL["prefilters"]
               for f in CAM_ABL["features"]]
-# the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn);
+# the config values `crgpr learn` reads (nominal rod, loader limits, gradient GPs, camera.learn, and the
+# integrator settings of a learned damping's rollouts);
 # the ablation cells train on fewer frames and points (camera.ablation.n_t_out, n_train_max, n_hyper_max) and
 # take their grey-box choice from camera.ablation.nominal_laws (one model class for every noise level)
 _LEARN_CFG = {
     "main": {"seed": config["seed"], "rod": config["rod"],
              "discovery": {k: config["discovery"][k] for k in ("min_rate_hz", "min_samples", "outlier_k",
                                                           "outlier_min_m", "geometry_tol")},
-             "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]}},
+             "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]},
+             "simulation": config["simulation"]},
 }
 _LEARN_CFG["ablation"] = copy.deepcopy(_LEARN_CFG["main"])
 _LEARN_CFG["ablation"]["camera"]["learn"]["n_t_out"] = CAM_ABL["n_t_out"]

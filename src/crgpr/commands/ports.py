@@ -28,7 +28,7 @@ import pandas as pd
 
 from crgpr.baselines import blackbox
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, load_learned, read_manifest
+from crgpr.commands.learn import learn, learned_damping, load_learned, read_manifest
 from crgpr.commands.posterior import posterior_components
 from crgpr.config import rod_params
 from crgpr.io import atomic_dir, read_parquet, write_csv, write_json, write_parquet
@@ -241,8 +241,9 @@ def actuated_uq(cfg: dict[str, Any], records: list[str], inputs: list[str], sign
         q0 = np.repeat(straight_rod(math.radians(theta0), P)[None], K, axis=0)
 
         def model_for(keys: np.ndarray, comps: dict[str, Any] = comps, P: RodParams = P,
-                      center: float | None = center, features: str = man["features"]) -> Any:
-            return sampled_rod({k: select_samples(c, keys) for k, c in comps.items()}, features, P, center)
+                      center: float | None = center, features: str = man["features"],
+                      c: float = learned_damping(man)) -> Any:
+            return sampled_rod({k: select_samples(v, keys) for k, v in comps.items()}, features, P, center, c)
 
         for sig, rec, upath in zip(signals, records, inputs, strict=True):
             t0 = time.perf_counter()

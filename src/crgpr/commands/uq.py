@@ -92,7 +92,13 @@ def uq_rollout_learned(samples_dir: str, model_dir: str, method: str, angles: Se
     learned GPs replaced by their samples (``samples_dir``, from ``uq_samples_learned``), its
     nominal laws kept (``commands.learn.learned_components``: the assembly of the mean model), on
     the rod of its manifest, with the config's integrator settings."""
-    from crgpr.commands.learn import learned_components, learned_models, read_manifest, rollout_settings
+    from crgpr.commands.learn import (
+        learned_components,
+        learned_damping,
+        learned_models,
+        read_manifest,
+        rollout_settings,
+    )
 
     settings = UQSettings.from_section(dict(uq))
     man = read_manifest(model_dir)
@@ -102,19 +108,21 @@ def uq_rollout_learned(samples_dir: str, model_dir: str, method: str, angles: Se
     sim = rollout_settings({"simulation": dict(simulation)}, params, None)
     _rollout_and_write(comps, man["features"], params, center, method, angles, sim, settings,
                        int(uq["store_every"]), outs, {"model_dir": str(model_dir),
-                                                      "nominal_laws": man.get("nominal_laws", [])})
+                                                      "nominal_laws": man.get("nominal_laws", [])},
+                       learned_damping(man))
 
 
 def _rollout_and_write(smp: Mapping[str, Any], features: str, params: RodParams, center: float | None,
                        method: str, angles: Sequence[int], sim: SimSettings, settings: UQSettings,
-                       k: int, outs: Sequence[str], extra: Mapping[str, Any] | None = None) -> None:
+                       k: int, outs: Sequence[str], extra: Mapping[str, Any] | None = None,
+                       damping: float = 0.0) -> None:
     if len(outs) != len(angles):
         raise ValueError(f"uq_rollout: {len(angles)} angles but {len(outs)} output files")
     bounds = {m: s.truncation_bound for m, s in smp.items() if hasattr(s, "truncation_bound")}
     log.info("kernel sums truncated below %g sigma_f^2: |change| <= %s (output units)",
              settings.kernel_tol, bounds)
     t0 = time.perf_counter()
-    res = rollout_samples_angles(smp, features, params, center, [float(a) for a in angles], sim)
+    res = rollout_samples_angles(smp, features, params, center, [float(a) for a in angles], sim, damping)
     secs = time.perf_counter() - t0
     for angle, out in zip(angles, outs, strict=True):
         t, q, p, keep, diverged = res[float(angle)]

@@ -17,7 +17,8 @@ dkappa_j/dt = (omega_{j+1} - omega_j) / ds from the angular rates of the trainin
   samples (time-major rows) are cut into ``blocks`` blocks; each law, with and without the
   damping, is fitted without one block and predicts it; the damping is kept only where it
   predicts the held-out blocks consistently better: the mean over blocks of
-  log(elastic error / damped error) above 1.96 standard errors. A rod without material
+  log(elastic error / damped error) above 1.96 standard errors, and its band (below) excludes
+  c = 0. A rod without material
   damping then keeps R = zeta I and its training set, hence its model, is unchanged.
 * the band of c: the delete-a-block jackknife, c +- 1.96 se.
 * refinement by the rollout (``refine_by_rollout``): the regression sees c dkappa/dt only as far
@@ -142,7 +143,10 @@ def fit_bending_damping(kappa: np.ndarray, kappa_dot: np.ndarray, m: np.ndarray,
     cs_a, d = np.array(cs), np.array(diff)
     se = math.sqrt((blocks - 1) / blocks * float(np.sum((cs_a - cs_a.mean()) ** 2)))
     ratio_se = float(np.std(d, ddof=1)) / math.sqrt(blocks)
-    kept = bool(c > 0 and d.mean() > Z95 * ratio_se)
+    # kept where it predicts the held-out blocks consistently better AND its band excludes c = 0
+    # (a term the blocks cannot tell from none, e.g. noise a rate happens to correlate with on a
+    # short record, is not a material damping)
+    kept = bool(c > 0 and d.mean() > Z95 * ratio_se and c - Z95 * se > 0)
     return DampingFit(coefficient=c if kept else 0.0, c_fit=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se,
                       se=se, heldout_mse_elastic=e_el / kappa.size, heldout_mse_damped=e_d / kappa.size,
                       heldout_log_ratio=float(d.mean()), heldout_log_ratio_se=ratio_se, kept=kept,

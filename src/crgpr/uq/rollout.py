@@ -47,25 +47,27 @@ def n_samples_of(samples: Mapping[str, Any]) -> int:
 
 
 def sampled_rod(samples: Mapping[str, Any], features: str, params: RodParams,
-                theta_center: float | None) -> LearnedRod:
+                theta_center: float | None, damping: float = 0.0) -> LearnedRod:
     """The learned rod whose components are posterior samples (state (S, N+1, 3)); components
-    without a sample axis (nominal laws) act on every sample alike."""
+    without a sample axis (nominal laws) act on every sample alike, and so does a learned bending
+    damping c (``damping``, the mean model's: ``learning.damping``)."""
     n_samples_of(samples)
-    return LearnedRod(samples, features, params, theta_center)
+    return LearnedRod(samples, features, params, theta_center, damping)
 
 
 def rollout_samples(samples: Mapping[str, SampleSet], features: str, params: RodParams,
-                    theta_center: float | None, theta0_deg: float, settings: SimSettings
+                    theta_center: float | None, theta0_deg: float, settings: SimSettings, damping: float = 0.0
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
     """Integrate all S sampled models at once at one angle; returns t (n_t,), q and p
     (S', n_t, N+1, 3) of the S' samples that stayed in the physical range, their indices, and the
     divergence records of the others (sample, t_s, step). See ``rollout_samples_angles``."""
-    res = rollout_samples_angles(samples, features, params, theta_center, [theta0_deg], settings)
+    res = rollout_samples_angles(samples, features, params, theta_center, [theta0_deg], settings, damping)
     return res[float(theta0_deg)]
 
 
 def rollout_samples_angles(samples: Mapping[str, SampleSet], features: str, params: RodParams,
                            theta_center: float | None, theta0_degs: Sequence[float], settings: SimSettings,
+                           damping: float = 0.0
                            ) -> dict[float, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                                   list[dict[str, Any]]]]:
     """All S sampled models at every angle as ONE batch of S x A rods (member (a, s): sample s
@@ -80,7 +82,7 @@ def rollout_samples_angles(samples: Mapping[str, SampleSet], features: str, para
 
     def model_for(keys: np.ndarray) -> LearnedRod:
         return sampled_rod({m: select_samples(smp, keys) for m, smp in samples.items()}, features, params,
-                           theta_center)
+                           theta_center, damping)
 
     what = f"UQ rollout at theta0 = {', '.join(f'{a:g}' for a in angles)} deg"
     runs = rollout_members(model_for, q0, members[:, 1], params, settings, what)
