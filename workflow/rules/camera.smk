@@ -27,6 +27,8 @@ _LEARN_CFG = {
              "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]},
              "simulation": config["simulation"]},
 }
+_LEARN_CFG["main"] = copy.deepcopy(_LEARN_CFG["main"])
+_LEARN_CFG["main"]["camera"]["learn"]["nominal_laws"] = CAM["method"]["nominal_laws"]
 _LEARN_CFG["ablation"] = copy.deepcopy(_LEARN_CFG["main"])
 _LEARN_CFG["ablation"]["camera"]["learn"]["n_t_out"] = CAM_ABL["n_t_out"]
 _LEARN_CFG["ablation"]["camera"]["learn"]["nominal_laws"] = CAM_ABL["nominal_laws"]

@@ -76,6 +76,7 @@ rule actuated_learn:
                        "prefilter", "ports.tendon_offset_m", "ports.study.prefilter",
                        "ports.study.camera_prefilter", "ports.study.camera_n_t_out", "ports.study.n_train_max",
                        "ports.study.n_hyper_max", "ports.study.blackbox_n_train", "ports.study.blackbox_n_hyper",
+                       "ports.study.nominal_laws",
                        "baselines.blackbox_gp"),
     log:
         "logs/actuated/learn_{model}.log",

@@ -98,8 +98,9 @@ def actuated_camera(cfg: dict[str, Any], record: str, out: str) -> None:
 
 def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
     """The config ``crgpr learn`` sees in the study: the gradient GPs capped at
-    ``ports.study.n_train_max`` points and ``n_hyper_max`` for the likelihood search, and the
-    camera model on ``ports.study.camera_n_t_out`` frames (the study's run-time budget)."""
+    ``ports.study.n_train_max`` points and ``n_hyper_max`` for the likelihood search, the
+    camera model on ``ports.study.camera_n_t_out`` frames (the study's run-time budget), and the
+    laws taken from the nominal rod ``ports.study.nominal_laws``."""
     out = copy.deepcopy(cfg)
     study = cfg["ports"]["study"]
     gm = out["gradient_models"]
@@ -108,6 +109,7 @@ def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
         for spec in gm[group].values():
             spec["n_train"] = min(int(spec["n_train"]), int(study["n_train_max"]))
     out["camera"]["learn"]["n_t_out"] = int(study["camera_n_t_out"])
+    out["camera"]["learn"]["nominal_laws"] = study["nominal_laws"]
     return out
 
 
