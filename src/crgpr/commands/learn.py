@@ -58,19 +58,15 @@ from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, po
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
-from crgpr.learning.law_choice import bending_arclength, learned_or_nominal
+from crgpr.learning.law_choice import bending_arclength, grey_box
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import (
-    MOMENTUM_LAWS,
     NOMINAL_LAWS,
     NominalLaw,
     SelectedInputs,
-    choose_nominal,
-    position_noise_std,
     segment_curvature_snr,
-    strain_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
@@ -150,6 +146,19 @@ def used_config(cfg: dict[str, Any], kind: str) -> dict[str, Any]:
             "camera": {"learn": cfg["camera"]["learn"]}, "gradient_models": cfg["gradient_models"]}
     return {**used, "prefilter": cfg["prefilter"]} if kind == "full_state" else used
 
+
+def capped_config(cfg: dict[str, Any], n_train_max: int, n_hyper_max: int, n_t_out: int) -> dict[str, Any]:
+    """A copy of ``cfg`` for a study's ``learn`` calls (run-time budget): every gradient GP capped
+    at ``n_train_max`` points and ``n_hyper_max`` for the likelihood search, camera models on
+    ``n_t_out`` frames (``camera.learn.n_t_out``)."""
+    out = copy.deepcopy(cfg)
+    gm = out["gradient_models"]
+    gm["n_hyper"] = min(int(gm["n_hyper"]), int(n_hyper_max))
+    for group in ("models", "objective_models"):
+        for spec in gm[group].values():
+            spec["n_train"] = min(int(spec["n_train"]), int(n_train_max))
+    out["camera"]["learn"]["n_t_out"] = int(n_t_out)
+    return out
 
 def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], features: str = "objective",
           prefilter_method: str = "gp", inputs_file: str | Path | None = None,
@@ -314,44 +323,6 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
                                          "nominal, covered, covered_lo, covered_hi, sd_points (SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
     return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
-
-
-def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,
-             cam: dict[str, Any], trim: int) -> dict[str, Any]:
-    """Which constitutive laws come from the nominal rod (``learning.nominal``) and why.
-
-    The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
-    names (or, with ``auto``, n1 / n2 where the strain SNR is below ``camera.learn.snr_min``, and
-    n1 / n2 / m and the momentum maps where a learned law does not predict held-out time blocks
-    consistently better than the nominal one: ``law_choice.learned_or_nominal``, recorded as
-    ``law_choice``) replace the objective features' GPs. The paper's features have no separate
-    stretch and shear law (q_x, q_y mix all three), so they are always learned in full.
-    """
-    sigma = position_noise_std(np.concatenate([x, y], axis=1))
-    res = {k: training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))[1]
-           for k in ("n1", "n2", "m")}
-    snr = strain_snr(res, params, sigma)
-    setting = cam["nominal_laws"]
-    heldout = None
-    if setting == "auto" and features == "objective":
-        heldout = {}
-        for k, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
-                                     "m": (0, params.EI, params.kappa0)}.items():
-            X, y = training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))
-            Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
-            heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
-                                            int(cam["choice_blocks"])).to_dict()
-        for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
-            X, y = training_data(arr, params, NOMINAL_LAWS[k], None)
-            heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
-                                            int(cam["choice_blocks"])).to_dict()
-    chosen = choose_nominal(setting, snr, float(cam["snr_min"]), heldout)
-    if features != "objective":
-        chosen = []
-    return {"nominal_laws": chosen, "nominal_laws_setting": setting, "snr_min": float(cam["snr_min"]),
-            "law_choice": heldout, "position_noise_std_m_differences": sigma, "strain_snr": snr,
-            "nominal_stiffness": {"EA": params.EA, "GA": params.GA, "nu1_0": params.nu1_0,
-                                  "nu2_0": params.nu2_0}}
 
 
 def read_manifest(model_dir: str | Path) -> dict[str, Any]:

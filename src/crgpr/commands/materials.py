@@ -14,7 +14,6 @@ and scores the learned bending law against the true one (``report.metrics.law_ac
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import zlib
@@ -25,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, load_learned, read_manifest
+from crgpr.commands.learn import capped_config, learn, load_learned, read_manifest
 from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.law_tables import bending_law_at_segments
@@ -74,19 +73,10 @@ def material_data(cfg: dict[str, Any], case: str, train_out: str, camera_out: st
 
 
 def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
-    """The config ``crgpr learn`` sees in the study: each gradient GP capped at ``n_train_max``
-    points and ``n_hyper_max`` for the likelihood search, the camera models on ``camera_n_t_out``
-    frames (the study's run-time budget)."""
-    out = copy.deepcopy(cfg)
+    """The config ``crgpr learn`` sees in the study: ``commands.learn.capped_config`` with the
+    study's ``n_train_max``, ``n_hyper_max`` and ``camera_n_t_out`` (its run-time budget)."""
     ms = cfg["materials_study"]
-    gm = out["gradient_models"]
-    gm["n_hyper"] = min(int(gm["n_hyper"]), int(ms["n_hyper_max"]))
-    for group in ("models", "objective_models"):
-        for spec in gm[group].values():
-            spec["n_train"] = min(int(spec["n_train"]), int(ms["n_train_max"]))
-    out["camera"]["learn"]["n_t_out"] = int(ms["camera_n_t_out"])
-    return out
-
+    return capped_config(cfg, ms["n_train_max"], ms["n_hyper_max"], ms["camera_n_t_out"])
 
 def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str) -> None:
     """Rule ``material_learn``: ``crgpr learn`` (objective features) on the full-state record

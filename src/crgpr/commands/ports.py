@@ -15,7 +15,6 @@ reason.
 
 from __future__ import annotations
 
-import copy
 import json
 import logging
 import math
@@ -28,7 +27,7 @@ import pandas as pd
 
 from crgpr.baselines import blackbox
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, learned_damping, load_learned, read_manifest
+from crgpr.commands.learn import capped_config, learn, learned_damping, load_learned, read_manifest
 from crgpr.commands.posterior import posterior_components
 from crgpr.config import rod_params
 from crgpr.io import atomic_dir, read_parquet, write_csv, write_json, write_parquet
@@ -97,21 +96,13 @@ def actuated_camera(cfg: dict[str, Any], record: str, out: str) -> None:
 
 
 def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
-    """The config ``crgpr learn`` sees in the study: the gradient GPs capped at
-    ``ports.study.n_train_max`` points and ``n_hyper_max`` for the likelihood search, the
-    camera model on ``ports.study.camera_n_t_out`` frames (the study's run-time budget), and the
-    laws taken from the nominal rod ``ports.study.nominal_laws``."""
-    out = copy.deepcopy(cfg)
+    """The config ``crgpr learn`` sees in the study: ``commands.learn.capped_config`` with
+    ``ports.study.n_train_max``, ``n_hyper_max`` and ``camera_n_t_out`` (the study's run-time
+    budget), and the laws taken from the nominal rod ``ports.study.nominal_laws``."""
     study = cfg["ports"]["study"]
-    gm = out["gradient_models"]
-    gm["n_hyper"] = min(int(gm["n_hyper"]), int(study["n_hyper_max"]))
-    for group in ("models", "objective_models"):
-        for spec in gm[group].values():
-            spec["n_train"] = min(int(spec["n_train"]), int(study["n_train_max"]))
-    out["camera"]["learn"]["n_t_out"] = int(study["camera_n_t_out"])
+    out = capped_config(cfg, study["n_train_max"], study["n_hyper_max"], study["camera_n_t_out"])
     out["camera"]["learn"]["nominal_laws"] = study["nominal_laws"]
     return out
-
 
 def actuated_learn(cfg: dict[str, Any], model: str, measured: str, inputs: str, out_dir: str) -> None:
     """Rule ``actuated_learn``: ``crgpr learn --inputs`` on the training record (``objective``:

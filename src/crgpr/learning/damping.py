@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from crgpr.learning.gradient_models import training_data
+from crgpr.learning.laws import Z95, consistent_gain, heldout_blocks, jackknife_se, log_error_ratio
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -55,7 +56,6 @@ from crgpr.physics.ports import Ports
 from crgpr.physics.rod import node_weights
 from crgpr.physics.signals import Inputs
 
-Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 MODES: tuple[str, ...] = ("auto", "none")
 DAMPING_TORQUE = "damping_torque"  # key of the prefilter arrays booked as a known force
 
@@ -128,28 +128,24 @@ def fit_bending_damping(kappa: np.ndarray, kappa_dot: np.ndarray, m: np.ndarray,
     center, scale = float(kappa.mean()), float(kappa.std()) or 1.0
     A = _design(kappa, segment, center, scale, degree)
     _, c = _fit(A, kdot, m, True)
-    edges = np.linspace(0, kappa.size, blocks + 1).astype(int)
     cs, diff, e_el, e_d = [], [], 0.0, 0.0
-    for b in range(blocks):
-        test = np.zeros(kappa.size, dtype=bool)
-        test[edges[b]:edges[b + 1]] = True
+    for test in heldout_blocks(kappa.size, blocks):
         ge, _ = _fit(A[~test], kdot[~test], m[~test], False)
         gd, cb = _fit(A[~test], kdot[~test], m[~test], True)
         cs.append(cb)
         ee = float(np.sum((m[test] - A[test] @ ge) ** 2))
         ed = float(np.sum((m[test] - A[test] @ gd - cb * kdot[test]) ** 2))
         e_el, e_d = e_el + ee, e_d + ed
-        diff.append(math.log(max(ee, 1e-300) / max(ed, 1e-300)))
-    cs_a, d = np.array(cs), np.array(diff)
-    se = math.sqrt((blocks - 1) / blocks * float(np.sum((cs_a - cs_a.mean()) ** 2)))
-    ratio_se = float(np.std(d, ddof=1)) / math.sqrt(blocks)
+        diff.append(log_error_ratio(ee, ed))
+    se = jackknife_se(np.array(cs))
+    mean, ratio_se, gain = consistent_gain(np.array(diff))
     # kept where it predicts the held-out blocks consistently better AND its band excludes c = 0
     # (a term the blocks cannot tell from none, e.g. noise a rate happens to correlate with on a
     # short record, is not a material damping)
-    kept = bool(c > 0 and d.mean() > Z95 * ratio_se and c - Z95 * se > 0)
+    kept = bool(c > 0 and gain and c - Z95 * se > 0)
     return DampingFit(coefficient=c if kept else 0.0, c_fit=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se,
                       se=se, heldout_mse_elastic=e_el / kappa.size, heldout_mse_damped=e_d / kappa.size,
-                      heldout_log_ratio=float(d.mean()), heldout_log_ratio_se=ratio_se, kept=kept,
+                      heldout_log_ratio=mean, heldout_log_ratio_se=ratio_se, kept=kept,
                       degree=int(degree), blocks=int(blocks), n=int(kappa.size))
 
 

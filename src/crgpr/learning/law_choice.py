@@ -39,8 +39,16 @@ from typing import Any
 import numpy as np
 
 from crgpr.learning.features import segment_arclength
-from crgpr.learning.gradient_models import training_data
-from crgpr.learning.laws import Z95
+from crgpr.learning.gradient_models import inner_segments, training_data
+from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
+from crgpr.learning.nominal import (
+    MOMENTUM_LAWS,
+    NOMINAL_LAWS,
+    NominalLaw,
+    choose_nominal,
+    position_noise_std,
+    strain_snr,
+)
 from crgpr.physics.params import RodParams
 
 
@@ -103,12 +111,9 @@ def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, b
         return HeldoutChoice(richer=False, heldout_mse_simple=nan, heldout_mse_richer=nan,
                              heldout_log_ratio=nan, heldout_log_ratio_se=nan, blocks=int(blocks),
                              degree=int(degree))
-    edges = np.linspace(0, n, blocks + 1).astype(int)
     e_s = e_r = 0.0
     d = []
-    for b in range(blocks):
-        test = np.zeros(n, dtype=bool)
-        test[edges[b]:edges[b + 1]] = True
+    for test in heldout_blocks(n, blocks):
         errs = []
         for A in (A_simple, A_richer):
             if A.shape[1] == 0:
@@ -118,15 +123,14 @@ def compare_heldout(y: np.ndarray, A_simple: np.ndarray, A_richer: np.ndarray, b
                 pred = A[test] @ coef
             errs.append(float(np.sum((r[test] - pred) ** 2)))
         e_s, e_r = e_s + errs[0], e_r + errs[1]
-        d.append(math.log(max(errs[0], 1e-300) / max(errs[1], 1e-300)))
-    dd = np.array(d)
-    se = float(np.std(dd, ddof=1)) / math.sqrt(blocks)
+        d.append(log_error_ratio(errs[0], errs[1]))
+    mean, se, gain = consistent_gain(np.array(d))
     # a simpler law exact to round-off (held-out rms error below sqrt(machine epsilon) x the
     # targets' rms: e.g. H_p = p / (rho A) of momenta derived from positions) leaves the richer
     # law nothing but round-off to fit, however consistently
     exact = math.sqrt(e_s / n) <= math.sqrt(np.finfo(float).eps) * float(np.sqrt(np.mean(y**2)))
-    return HeldoutChoice(richer=bool(dd.mean() > Z95 * se and not exact), heldout_mse_simple=e_s / n,
-                         heldout_mse_richer=e_r / n, heldout_log_ratio=float(dd.mean()),
+    return HeldoutChoice(richer=bool(gain and not exact), heldout_mse_simple=e_s / n,
+                         heldout_mse_richer=e_r / n, heldout_log_ratio=mean,
                          heldout_log_ratio_se=se, blocks=int(blocks), degree=int(degree))
 
 
@@ -169,3 +173,41 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
                                       int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
     used = setting == "always" or (choice is not None and choice["richer"])
     return {"setting": setting, "used": bool(used), "choice": choice}
+
+
+def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,
+             cam: dict[str, Any], trim: int) -> dict[str, Any]:
+    """Which constitutive laws come from the nominal rod (``learning.nominal``) and why.
+
+    The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
+    names (or, with ``auto``, n1 / n2 where the strain SNR is below ``camera.learn.snr_min``, and
+    n1 / n2 / m and the momentum maps where a learned law does not predict held-out time blocks
+    consistently better than the nominal one: ``law_choice.learned_or_nominal``, recorded as
+    ``law_choice``) replace the objective features' GPs. The paper's features have no separate
+    stretch and shear law (q_x, q_y mix all three), so they are always learned in full.
+    """
+    sigma = position_noise_std(np.concatenate([x, y], axis=1))
+    res = {k: training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))[1]
+           for k in ("n1", "n2", "m")}
+    snr = strain_snr(res, params, sigma)
+    setting = cam["nominal_laws"]
+    heldout = None
+    if setting == "auto" and features == "objective":
+        heldout = {}
+        for k, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
+                                     "m": (0, params.EI, params.kappa0)}.items():
+            X, y = training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))
+            Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
+            heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
+                                            int(cam["choice_blocks"])).to_dict()
+        for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
+            X, y = training_data(arr, params, NOMINAL_LAWS[k], None)
+            heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
+                                            int(cam["choice_blocks"])).to_dict()
+    chosen = choose_nominal(setting, snr, float(cam["snr_min"]), heldout)
+    if features != "objective":
+        chosen = []
+    return {"nominal_laws": chosen, "nominal_laws_setting": setting, "snr_min": float(cam["snr_min"]),
+            "law_choice": heldout, "position_noise_std_m_differences": sigma, "strain_snr": snr,
+            "nominal_stiffness": {"EA": params.EA, "GA": params.GA, "nu1_0": params.nu1_0,
+                                  "nu2_0": params.nu2_0}}

@@ -65,6 +65,38 @@ class RestState:
         return kappa0_nominal if self.band_lo <= kappa0_nominal <= self.band_hi else self.kappa_rest
 
 
+def heldout_blocks(n: int, blocks: int) -> list[np.ndarray]:
+    """Boolean masks of ``blocks`` contiguous blocks of n time-ordered rows: the held-out unit of
+    every choice the data decide in ``learning`` (the samples of one trajectory are correlated in
+    time, so blocks, not single samples, are the independent units)."""
+    edges = np.linspace(0, n, blocks + 1).astype(int)
+    out = []
+    for b in range(blocks):
+        test = np.zeros(n, dtype=bool)
+        test[edges[b]:edges[b + 1]] = True
+        out.append(test)
+    return out
+
+
+def log_error_ratio(e_simple: float, e_richer: float) -> float:
+    """d_b = log(simpler law's / richer law's held-out squared error) of one block."""
+    return math.log(max(e_simple, 1e-300) / max(e_richer, 1e-300))
+
+
+def consistent_gain(d: np.ndarray) -> tuple[float, float, bool]:
+    """(mean of d_b over the blocks, its standard error, whether the richer law predicts the
+    held-out blocks consistently better: mean > 1.96 standard errors)."""
+    d = np.asarray(d, dtype=float)
+    se = float(np.std(d, ddof=1)) / math.sqrt(d.size)
+    return float(d.mean()), se, bool(d.mean() > Z95 * se)
+
+
+def jackknife_se(values: np.ndarray) -> float:
+    """Delete-a-block jackknife standard error of an estimate from its leave-one-block-out values."""
+    v = np.asarray(values, dtype=float)
+    return math.sqrt((v.size - 1) / v.size * float(np.sum((v - v.mean()) ** 2)))
+
+
 def _odd_design(u: np.ndarray, degree: int) -> np.ndarray:
     return np.stack([u**k for k in range(1, degree + 1, 2)], axis=-1)
 
@@ -117,11 +149,8 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> Re
     center = float(kappa.mean())
     scale = float(kappa.std()) or 1.0
     c, _ = _odd_fit(kappa, m, degree, scale)
-    edges = np.linspace(0, kappa.size, blocks + 1).astype(int)
     cs, diff, e_odd, e_gen = [], [], 0.0, 0.0
-    for b in range(blocks):
-        test = np.zeros(kappa.size, dtype=bool)
-        test[edges[b]:edges[b + 1]] = True
+    for test in heldout_blocks(kappa.size, blocks):
         kt, mt = kappa[~test], m[~test]
         cb, ab = _odd_fit(kt, mt, degree, scale)
         cs.append(cb)
@@ -129,16 +158,14 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> Re
         g, _ = _lstsq(_general_design(kt, center, scale, degree), mt)
         eg = float(np.sum((m[test] - _general_design(kappa[test], center, scale, degree) @ g) ** 2))
         e_odd, e_gen = e_odd + eo, e_gen + eg
-        diff.append(math.log(max(eo, 1e-300) / max(eg, 1e-300)))
-    cs_a = np.array(cs)
-    se = math.sqrt((blocks - 1) / blocks * float(np.sum((cs_a - cs_a.mean()) ** 2)))
+        diff.append(log_error_ratio(eo, eg))
+    se = jackknife_se(np.array(cs))
     mse_odd, mse_gen = e_odd / kappa.size, e_gen / kappa.size
     # the general law only where it predicts the held-out blocks consistently better: the mean
     # over blocks of log(odd error / general error) above 1.96 of its standard error (blocks as
     # independent units; the log ratio is scale-free, so blocks of larger curvature do not dominate)
-    d = np.array(diff)
-    ratio_se = float(np.std(d, ddof=1)) / math.sqrt(blocks)
+    mean, ratio_se, general = consistent_gain(np.array(diff))
     return RestState(kappa_rest=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se, se=se,
                      heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
-                     heldout_log_ratio=float(d.mean()), heldout_log_ratio_se=ratio_se,
-                     symmetric=bool(d.mean() <= Z95 * ratio_se), degree=int(degree), blocks=int(blocks))
+                     heldout_log_ratio=mean, heldout_log_ratio_se=ratio_se,
+                     symmetric=not general, degree=int(degree), blocks=int(blocks))
