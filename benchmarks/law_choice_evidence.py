@@ -71,11 +71,12 @@ def main() -> None:
     for law, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
                                    "m": (0, params.EI, params.kappa0)}.items():
         X, y = training_data(arr, params, f"obj_{law}", None, mask)
-        c = learned_or_nominal(X[:, :1] if law == "m" else X, y, stiff * (X[:, col] - ref), deg, blocks)
+        c = learned_or_nominal(X[:, :1] if law == "m" else X, y, stiff * (X[:, col] - ref), deg, blocks,
+                               pooled=True)
         rows.append({"quantity": "learned_or_nominal", "law": law, **c.to_dict()})
     for law in MOMENTUM_LAWS:  # the velocity maps H_p(p) against p / (rho A), p / (rho I)
         X, y = training_data(arr, params, NOMINAL_LAWS[law], None)
-        c = learned_or_nominal(X, y, NominalLaw(law, params)(X[:, 0]), deg, blocks)
+        c = learned_or_nominal(X, y, NominalLaw(law, params)(X[:, 0]), deg, blocks, pooled=False)
         rows.append({"quantity": "learned_or_nominal", "law": law, **c.to_dict()})
     X, y = training_data(arr, params, "obj_m", None, mask)
     S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))

@@ -91,6 +91,19 @@ def consistent_gain(d: np.ndarray) -> tuple[float, float, bool]:
     return float(d.mean()), se, bool(d.mean() > Z95 * se)
 
 
+def pooled_gain(e_simple: np.ndarray, e_richer: np.ndarray) -> tuple[float, float, bool]:
+    """(log of the simpler law's over the richer law's total held-out squared error, its
+    delete-a-block jackknife standard error, whether it exceeds 1.96 of it), from the per-block
+    errors. Unlike ``consistent_gain`` the blocks are weighted by their error: a law that differs
+    from the simpler one only where the record reaches large strains (its first, large-amplitude
+    blocks) counts there."""
+    es, er = np.asarray(e_simple, dtype=float), np.asarray(e_richer, dtype=float)
+    ratio = log_error_ratio(float(es.sum()), float(er.sum()))
+    loo = np.array([log_error_ratio(float(es.sum() - es[b]), float(er.sum() - er[b]))
+                    for b in range(es.size)])
+    se = jackknife_se(loo)
+    return ratio, se, bool(ratio > Z95 * se)
+
 def jackknife_se(values: np.ndarray) -> float:
     """Delete-a-block jackknife standard error of an estimate from its leave-one-block-out values."""
     v = np.asarray(values, dtype=float)
