@@ -25,7 +25,7 @@ _LEARN_CFG = {
              "discovery": {k: config["discovery"][k] for k in ("min_rate_hz", "min_samples", "outlier_k",
                                                           "outlier_min_m", "geometry_tol")},
              "gradient_models": config["gradient_models"], "camera": {"learn": CAM["learn"]},
-             "simulation": config["simulation"]},
+             "simulation": {k: config["simulation"][k] for k in ("dt_s", "record_every", "scheme")}},
 }
 _LEARN_CFG["main"] = copy.deepcopy(_LEARN_CFG["main"])
 _LEARN_CFG["main"]["camera"]["learn"]["nominal_laws"] = CAM["method"]["nominal_laws"]

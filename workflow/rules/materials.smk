@@ -50,7 +50,7 @@ rule material_learn:
     params:
         cfg=cfg_params("seed", "rod", "discovery.min_rate_hz", "discovery.min_samples", "discovery.outlier_k",
                        "discovery.outlier_min_m", "discovery.geometry_tol", "gradient_models", "camera.learn",
-                       "simulation",
+                       "simulation.dt_s", "simulation.record_every", "simulation.scheme",
                        "prefilter", "materials_study.prefilter", "materials_study.camera_prefilter",
                        "materials_study.camera_n_t_out", "materials_study.n_train_max",
                        "materials_study.n_hyper_max"),

@@ -72,7 +72,7 @@ rule actuated_learn:
     params:
         cfg=cfg_params("seed", "rod", "discovery.min_rate_hz", "discovery.min_samples", "discovery.outlier_k",
                        "discovery.outlier_min_m", "discovery.geometry_tol", "gradient_models", "camera.learn",
-                       "simulation",
+                       "simulation.dt_s", "simulation.record_every", "simulation.scheme",
                        "prefilter", "ports.tendon_offset_m", "ports.study.prefilter",
                        "ports.study.camera_prefilter", "ports.study.camera_n_t_out", "ports.study.n_train_max",
                        "ports.study.n_hyper_max", "ports.study.blackbox_n_train", "ports.study.blackbox_n_hyper",

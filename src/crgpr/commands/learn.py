@@ -303,7 +303,12 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
     training record (``learning.damping.record_rmse_theta``)."""
     man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
     comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
-    st = rollout_settings(cfg, params, float(arr["t"][-1] - arr["t"][0]))
+    sim = cfg["simulation"]  # the step, record interval and scheme; the length is the record's
+    st = SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
+                     record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))
+    if st.dt >= params.dt_stable():
+        raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
+                          f"need < {params.dt_stable():.3g} s")
     return record_rmse_theta(comps, features, params, center, st, arr, inputs, ports)
 
 
