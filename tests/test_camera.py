@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 
@@ -78,8 +79,13 @@ def test_gp_noise_level_is_estimated_from_the_data(sim):
 
 @pytest.fixture(scope="module")
 def smoke_models(tmp_path_factory, smoke_training_run):
-    """Smoke-sized models learned from the full state and from positions only (noise-free)."""
+    """Smoke-sized models learned from the full state and from positions only (noise-free), with
+    the stretch and shear laws nominal (the comparison is of the learned bending law and momentum
+    maps; with ``auto`` this 0.4 s full-state record learns a shear law whose rollout leaves the
+    physical range: docs/learned-laws.md, "Not done")."""
     cfg, tr = smoke_training_run
+    cfg = copy.deepcopy(cfg)
+    cfg["camera"]["learn"]["nominal_laws"] = ["n1", "n2"]
     d = tmp_path_factory.mktemp("learn")
     full = trajectory_frame(tr).drop(columns=["theta0_deg", "s"])
     write_parquet(full, d / "full.parquet")

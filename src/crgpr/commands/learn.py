@@ -240,7 +240,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         # decided before the laws are: where kept, every law (and its learned-or-nominal choice) is
         # learned from targets without it
         arr, damping = learn_bending_damping(arr, params, m_mask, cam["bending_damping"])
-    grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim)
+    grey = grey_box(arr, params, meas.x, meas.y, features, cam, trim, kind == "positions")
     trained = [n for n in names if n not in {NOMINAL_LAWS[k] for k in grey["nominal_laws"]}]
     trims = {n: trim for n in trained}
     masks = {n: inner_segments(params.N, trim) for n in trained}

@@ -196,7 +196,7 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
 
 
 def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,
-             cam: dict[str, Any], trim: int) -> dict[str, Any]:
+             cam: dict[str, Any], trim: int, from_positions: bool) -> dict[str, Any]:
     """Which constitutive laws come from the nominal rod (``learning.nominal``) and why.
 
     The strain SNR is measured (and recorded) for every input; the laws ``camera.learn.nominal_laws``
@@ -225,9 +225,15 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
             heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
                                             int(cam["choice_blocks"]), pooled=False).to_dict()
     chosen = choose_nominal(setting, snr, float(cam["snr_min"]), heldout)
+    if setting == "auto" and from_positions:
+        # positions rebuild the state without shear (learning/camera.py): the stretch and shear
+        # strains, hence the n1 / n2 samples, are the reconstruction's, not the rod's, so those
+        # laws are not learned from them whatever their SNR or held-out blocks say
+        chosen = [k for k in NOMINAL_LAWS if k in chosen or k in ("n1", "n2")]
     if features != "objective":
         chosen = []
     return {"nominal_laws": chosen, "nominal_laws_setting": setting, "snr_min": float(cam["snr_min"]),
+            "strains_from_positions": bool(from_positions),
             "law_choice": heldout, "position_noise_std_m_differences": sigma, "strain_snr": snr,
             "nominal_stiffness": {"EA": params.EA, "GA": params.GA, "nu1_0": params.nu1_0,
                                   "nu2_0": params.nu2_0}}
