@@ -304,11 +304,8 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
     man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
     comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
     sim = cfg["simulation"]  # the step, record interval and scheme; the length is the record's
-    st = SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
-                     record_every=int(sim["record_every"]), scheme=str(sim["scheme"]))
-    if st.dt >= params.dt_stable():
-        raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
-                          f"need < {params.dt_stable():.3g} s")
+    st = checked_step(SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
+                                  record_every=int(sim["record_every"]), scheme=str(sim["scheme"])), params)
     return record_rmse_theta(comps, features, params, center, st, arr, inputs, ports)
 
 
@@ -388,8 +385,12 @@ def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None
     base = sim_settings(cfg)
     if t_end is not None and not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"--t-end {t_end}: must be a positive number of seconds")
-    st = SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
-                     record_every=base.record_every, scheme=base.scheme)
+    return checked_step(SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
+                                    record_every=base.record_every, scheme=base.scheme), params)
+
+
+def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
+    """``st`` if its step is stable for the model's rod, else a one-line ConfigError."""
     if st.dt >= params.dt_stable():
         raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
                           f"need < {params.dt_stable():.3g} s")
