@@ -14,6 +14,7 @@ from crgpr.commands.learn import learn, load_learned
 from crgpr.config import ConfigError, load_config, validate_schema
 from crgpr.gp import load_model
 from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.gradient_models import subset_keeping_extremes
 from crgpr.learning.laws import rest_state
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
@@ -44,6 +45,28 @@ def test_a_law_that_is_not_odd_about_any_curvature_is_not_mirrored():
     m = EI * (kappa + 0.4 * kappa**2)  # stiffer one way than the other (an asymmetric section)
     r = rest_state(kappa, m, degree=3, blocks=10)
     assert not r.symmetric and r.heldout_mse_general < r.heldout_mse_odd, r
+
+
+def test_a_saturating_law_seen_one_way_is_still_odd():
+    """A softening law odd about 0 (m = m_s tanh(EI kappa / m_s)) that the record bends mostly one
+    way: the odd law (D + 1 odd terms) and the general one (degree D) have as many coefficients, so
+    the general law cannot win on flexibility alone (at equal degree it had twice the terms)."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 2.0, 3000)
+    kappa = -40.0 * np.exp(-0.8 * t) * (1.0 + np.cos(9.0 * t)) / 2.0 + 2.0 * np.sin(5.0 * t)
+    m_s = 0.05
+    m = m_s * np.tanh(EI * kappa / m_s) + 1e-6 * rng.standard_normal(kappa.size)
+    r = rest_state(kappa, m, degree=3, blocks=10)
+    assert r.symmetric and r.band_lo <= 0.0 <= r.band_hi, r
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(2, 60), seed=st.integers(0, 10_000))
+def test_a_training_subset_keeps_the_least_and_largest_input(n, seed):
+    x = np.random.default_rng(seed).standard_normal(61)
+    idx = subset_keeping_extremes(x, n, np.random.default_rng(seed))
+    assert idx.size == n and np.all(np.diff(idx) > 0)
+    assert x[idx].min() == x.min() and x[idx].max() == x.max()
 
 
 @settings(max_examples=15, deadline=None)

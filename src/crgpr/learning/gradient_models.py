@@ -135,6 +135,20 @@ def model_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, p: np.ndarray, 
     raise ConfigError(f"unknown gradient model {name!r}")
 
 
+def subset_keeping_extremes(x: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of n of the samples ``x`` (n,) drawn uniformly without replacement, with the
+    samples of least and largest x in place of two of the drawn ones where the draw missed them."""
+    n_all = x.size
+    if n >= n_all:
+        return np.arange(n_all)
+    idx = rng.choice(n_all, size=n, replace=False)
+    ends = list(dict.fromkeys((int(np.argmin(x)), int(np.argmax(x)))))[:n]
+    missing = [i for i in ends if i not in set(idx.tolist())]
+    free = [k for k in range(n) if int(idx[k]) not in ends][:len(missing)]
+    idx[free] = missing
+    return np.sort(idx)
+
+
 def inner_segments(n_segments: int, trim_ends: int) -> np.ndarray:
     """Segment mask without the first and last ``trim_ends`` segments."""
     keep = np.ones(n_segments, dtype=bool)
@@ -413,9 +427,11 @@ def train_model_arrays(cfg: dict[str, Any], name: str, arr: dict[str, np.ndarray
     if odd_about is not None:
         if X.shape[1] != 1 + int(arclength):
             raise ConfigError(f"model {name}: an odd-symmetric law needs one input (and s), got {X.shape[1]}")
-        # n_train / 2 samples (seeded) and their reflections: the training set is exactly symmetric
-        half = min(int(spec["n_train"]) // 2, X.shape[0])
-        keep = np.sort(np.random.default_rng(seed).choice(X.shape[0], size=half, replace=False))
+        # n_train / 2 samples (seeded) and their reflections: the training set is exactly symmetric;
+        # the subset keeps the samples of least and largest curvature, so that the law's covered
+        # range (and the reach of its data beyond the linear trend) is the record's, not the subset's
+        keep = subset_keeping_extremes(X[:, 0], min(int(spec["n_train"]) // 2, X.shape[0]),
+                                       np.random.default_rng(seed))
         X, y = X[keep], y[keep]
         Xr = X.copy()
         Xr[:, 0] = 2.0 * odd_about - X[:, 0]
