@@ -60,6 +60,32 @@ def test_a_saturating_law_seen_one_way_is_still_odd():
     assert r.symmetric and r.band_lo <= 0.0 <= r.band_hi, r
 
 
+def _segments_record(rest: np.ndarray, seed: int = 4):
+    """Time-major samples of five segments, each with a stiffness of its own (graded along s)
+    and a stiffening law odd about its own rest curvature ``rest`` (5,)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, 600)[:, None]
+    j = np.arange(5)[None, :]
+    kappa = (30.0 - 5.0 * j) * np.exp(-t) * np.cos(9.0 * t) + 0.3 * rng.standard_normal((600, 5))
+    d = kappa - rest[None, :]
+    m = EI * (1.5 - 0.2 * j) * np.sinh(0.05 * d) / 0.05 + 1e-6 * rng.standard_normal(kappa.shape)
+    return kappa.ravel(), m.ravel(), np.tile(np.arange(5), 600)
+
+
+def test_a_graded_law_odd_about_one_rest_curvature_is_mirrored_segment_by_segment():
+    """With s as an input each segment has a law of its own about one shared rest curvature: the
+    graded law is odd about 0."""
+    kappa, m, groups = _segments_record(np.zeros(5))
+    r = rest_state(kappa, m, 3, 10, groups)
+    assert r.symmetric and r.band_lo <= 0.0 <= r.band_hi and r.band_hi - r.band_lo < 0.5, r
+
+
+def test_a_rest_curvature_that_varies_along_the_rod_is_not_mirrored():
+    kappa, m, groups = _segments_record(np.linspace(3.0, -3.0, 5))
+    r = rest_state(kappa, m, 3, 10, groups)
+    assert not r.symmetric, r
+
+
 @settings(max_examples=25, deadline=None)
 @given(n=st.integers(2, 60), seed=st.integers(0, 10_000))
 def test_a_training_subset_keeps_the_least_and_largest_input(n, seed):

@@ -299,7 +299,10 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
         bounds = {"ell_bounds_std": [ell_b[0].tolist(), ell_b[1].tolist()], "sigma_f_bounds_std": list(sf_b)}
         init = ({"sigma_f": 3.0, "lengthscales": 5.0, "sigma_n": 1e-3} if one_d
                 else {"sigma_f": 1.0, "lengthscales": 1.0, "sigma_n": 0.05})
-        gp = fit_gp(Xn, yn, n_restarts=max(int(gm["n_restarts"]), 3) if one_d else int(gm["n_restarts"]),
+        # low-dimensional laws (1D; the bending law of kappa and s) are cheap to refit and their
+        # LML surface has several optima: at least three starts
+        starts = max(int(gm["n_restarts"]), 3) if X.shape[1] <= 2 else int(gm["n_restarts"])
+        gp = fit_gp(Xn, yn, n_restarts=starts,
                     seed=seed, hyper_subset=int(gm["n_hyper"]), init=init, ell_bounds=ell_b,
                     sigma_f_bounds=sf_b, **common)
         hyp_src = f"marginal likelihood on {min(int(gm['n_hyper']), n)} points, bounded (hyper_bounds)"

@@ -35,6 +35,7 @@ moves c away from the samples' mean curvature; the jackknife band does not inclu
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -126,25 +127,46 @@ def _lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     return coef, float(r @ r)
 
 
-def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float) -> tuple[float, np.ndarray]:
-    """(c, a) of the odd law minimising the squared residual (profile least squares)."""
+def _group_rows(groups: np.ndarray | None, n: int) -> list[np.ndarray]:
+    """Row indices of each group (one group of all rows where ``groups`` is None)."""
+    if groups is None:
+        return [np.arange(n)]
+    return [np.flatnonzero(groups == g) for g in np.unique(groups)]
+
+
+def _odd_rss(kappa: np.ndarray, m: np.ndarray, rows: list[np.ndarray], c: float, degree: int,
+             scale: float) -> float:
+    return sum(_lstsq(_odd_design((kappa[r] - c) / scale, degree), m[r])[1] for r in rows if r.size)
+
+
+def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float, rows: list[np.ndarray]) -> float:
+    """c of the odd law (coefficients of its own in each group of ``rows``, one c) minimising the
+    squared residual (profile least squares)."""
     lo, hi = float(kappa.min()), float(kappa.max())
     span = max(hi - lo, 1e-12)
 
     def rss(c: float) -> float:
-        return _lstsq(_odd_design((kappa - c) / scale, degree), m)[1]
+        return _odd_rss(kappa, m, rows, c, degree, scale)
 
     grid = np.linspace(lo - span, hi + span, 301)
     vals = np.array([rss(c) for c in grid])
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 1e-10 * span})
-    c = float(res.x) if res.fun <= vals[i] else float(grid[i])
-    return c, _lstsq(_odd_design((kappa - c) / scale, degree), m)[0]
+    return float(res.x) if res.fun <= vals[i] else float(grid[i])
 
 
-def _odd_predict(kappa: np.ndarray, c: float, coef: np.ndarray, degree: int, scale: float) -> np.ndarray:
-    return _odd_design((kappa - c) / scale, degree) @ coef
+def _heldout_error(kappa: np.ndarray, m: np.ndarray, train: np.ndarray, test: np.ndarray,
+                   design: Callable[[np.ndarray], np.ndarray], rows: list[np.ndarray]) -> float:
+    """Squared error on the ``test`` rows of a law fitted (per group) on the ``train`` rows."""
+    err = 0.0
+    for r in rows:
+        tr, te = r[train[r]], r[test[r]]
+        if te.size == 0:
+            continue
+        coef = _lstsq(design(kappa[tr]), m[tr])[0] if tr.size else np.zeros(design(kappa[te]).shape[1])
+        err += float(np.sum((m[te] - design(kappa[te]) @ coef) ** 2))
+    return err
 
 
 def _general_design(kappa: np.ndarray, center: float, scale: float, degree: int) -> np.ndarray:
@@ -152,33 +174,35 @@ def _general_design(kappa: np.ndarray, center: float, scale: float, degree: int)
     return np.stack([u**k for k in range(degree + 1)], axis=-1)
 
 
-def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> RestState:
+def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
+               groups: np.ndarray | None = None) -> RestState:
     """Rest curvature, its 95 % band and the symmetry decision from law samples (see module doc).
 
     ``kappa``, ``m``: (n,) curvature inputs and bending-moment targets, rows in time order;
     ``degree``: D, the odd degree of the law c is fitted with and the degree of the general law
     (the odd law it is compared with has degree 2 D + 1); ``blocks``: contiguous held-out blocks
-    (>= 2).
+    (>= 2); ``groups``: (n,) labels of samples that share a law (the segments of a law that
+    varies along the rod): each group has coefficients of its own, all share one rest curvature c.
     """
     kappa = np.asarray(kappa, dtype=float).ravel()
     m = np.asarray(m, dtype=float).ravel()
     if degree < 1 or degree % 2 == 0:
         raise ValueError(f"rest_state: degree {degree} must be odd and >= 1")
-    if blocks < 2 or kappa.size < blocks * (2 * degree + 3):
+    rows = _group_rows(None if groups is None else np.asarray(groups).ravel(), kappa.size)
+    # enough samples for every held-out fit of the odd law (2 D + 2 coefficients) in every group
+    if blocks < 2 or kappa.size < blocks * (2 * degree + 3) or min(r.size for r in rows) < 4 * (degree + 1):
         raise ValueError(f"rest_state: {kappa.size} samples cannot fill {blocks} blocks of a degree-{degree} "
-                         "law")
+                         "law" + ("" if groups is None else f" in each of {len(rows)} groups"))
     center = float(kappa.mean())
     scale = float(kappa.std()) or 1.0
-    c, _ = _odd_fit(kappa, m, degree, scale)
+    c = _odd_fit(kappa, m, degree, scale, rows)
     cs, diff, e_odd, e_gen = [], [], 0.0, 0.0
     for test in heldout_blocks(kappa.size, blocks):
-        kt, mt = kappa[~test], m[~test]
-        cb, _ = _odd_fit(kt, mt, degree, scale)
+        cb = _odd_fit(kappa[~test], m[~test], degree, scale, _subset_rows(rows, ~test))
         cs.append(cb)
-        ao = _lstsq(_odd_design((kt - cb) / scale, 2 * degree + 1), mt)[0]
-        eo = float(np.sum((m[test] - _odd_predict(kappa[test], cb, ao, 2 * degree + 1, scale)) ** 2))
-        g, _ = _lstsq(_general_design(kt, center, scale, degree), mt)
-        eg = float(np.sum((m[test] - _general_design(kappa[test], center, scale, degree) @ g) ** 2))
+        eo = _heldout_error(kappa, m, ~test, test,
+                            lambda k, cb=cb: _odd_design((k - cb) / scale, 2 * degree + 1), rows)
+        eg = _heldout_error(kappa, m, ~test, test, lambda k: _general_design(k, center, scale, degree), rows)
         e_odd, e_gen = e_odd + eo, e_gen + eg
         diff.append(log_error_ratio(eo, eg))
     se = jackknife_se(np.array(cs))
@@ -191,3 +215,9 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int) -> Re
                      heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
                      heldout_log_ratio=mean, heldout_log_ratio_se=ratio_se,
                      symmetric=not general, degree=int(degree), blocks=int(blocks))
+
+
+def _subset_rows(rows: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
+    """Group rows re-indexed into the rows where ``keep`` holds."""
+    pos = np.cumsum(keep) - 1
+    return [pos[r[keep[r]]] for r in rows]

@@ -195,13 +195,14 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
 def _interleave_reflections(X: np.ndarray, y: np.ndarray, about: float, src: Path
                            ) -> tuple[np.ndarray, np.ndarray]:
     """Rows of an odd law (``gradient_models.train_model_arrays(odd_about=...)``: n/2 time-major
-    samples, then their reflections (2 k0 - x, -y)) reordered so that each sample is followed by
-    its reflection: a contiguous block of rows (``uq.heldout_blocks``) is then a time block with
-    its mirror image, not a time block whose reflection stays in the other blocks. The posterior
-    does not depend on the order."""
+    samples, then their reflections (2 k0 - x, -y; an arclength input s unchanged)) reordered so
+    that each sample is followed by its reflection: a contiguous block of rows
+    (``uq.heldout_blocks``) is then a time block with its mirror image, not a time block whose
+    reflection stays in the other blocks. The posterior does not depend on the order."""
     h = X.shape[0] // 2
-    if X.shape[1] != 1 or 2 * h != X.shape[0] or not (
-            np.allclose(X[h:], 2.0 * about - X[:h], rtol=0.0, atol=1e-12 * (1.0 + np.abs(X).max()))
+    if 2 * h != X.shape[0] or not (
+            np.allclose(X[h:, 0], 2.0 * about - X[:h, 0], rtol=0.0, atol=1e-12 * (1.0 + np.abs(X).max()))
+            and np.array_equal(X[h:, 1:], X[:h, 1:])
             and np.allclose(y[h:], -y[:h], rtol=0.0, atol=1e-12 * (1.0 + np.abs(y).max()))):
         raise ValueError(f"{src}: odd_about = {about:g}, but its rows are not samples followed by "
                          "their reflections")
