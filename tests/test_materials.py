@@ -360,3 +360,22 @@ def test_cli_simulates_a_material_and_records_it(tmp_path):
     assert meta["rod"]["material"]["bending_law"] == "exponential"
     assert RodParams.from_dict(meta["rod"]).material == Material(
         bending_law="exponential", bending_beta=0.1, stiffness_profile=((0.0, 1.5), (1.0, 1.0)))
+
+
+def test_cli_sets_a_material_key_as_it_sets_a_rod_parameter(tmp_path, capsys):
+    """``--set material.KEY=VALUE`` (or ``rod.material.KEY``) reaches the material section, its
+    value read as YAML, validated by the same rules as the config file."""
+    out = tmp_path / "x.parquet"
+    assert main(["simulate", "--theta0", "85", "--out", str(out), "--t-end", "0.01",
+                 "--set", "material.bending_law=exponential", "--set", "rod.material.bending_beta=0.1",
+                 "--set", "material.stiffness_profile=[[0, 1.5], [1, 1.0]]"]) == 0
+    from crgpr.io import read_metadata
+
+    mat = read_metadata(out)["rod"]["material"]
+    assert mat["bending_law"] == "exponential" and mat["bending_beta"] == 0.1
+    assert mat["stiffness_profile"] == [[0, 1.5], [1, 1.0]]
+    bad = tmp_path / "y.parquet"
+    assert main(["simulate", "--theta0", "85", "--out", str(bad), "--t-end", "0.01",
+                 "--set", "material.bending_beta=0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "rod.material.bending_beta" in err and err.count("\n") == 1 and not bad.exists()

@@ -306,7 +306,10 @@ def sim_settings(cfg: dict[str, Any]) -> SimSettings:
 
 def parse_set(items: list[str]) -> dict[str, Any]:
     """Parse ``KEY=VALUE`` rod-parameter overrides from the command line (``--set E=2e6``, or
-    with the section named as in ``crgpr learn``: ``--set rod.E=2e6``).
+    with the section named as in ``crgpr learn``: ``--set rod.E=2e6``); a key of the material
+    section (``--set material.bending_law=exponential``, ``--set rod.material.bending_beta=0.05``,
+    ``--set "material.stiffness_profile=[[0, 1.5], [1, 0.6]]"``) is returned under ``material``,
+    its value read as YAML.
 
     Only the syntax is checked here (a known key and a number); ``cli_rod_sim`` validates
     the values by the config file's rules.
@@ -317,6 +320,12 @@ def parse_set(items: list[str]) -> dict[str, Any]:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         key, raw = item.split("=", 1)
         key = key.strip().removeprefix("rod.")
+        if key.startswith("material."):
+            try:
+                out.setdefault("material", {})[key.removeprefix("material.")] = yaml.safe_load(raw)
+            except yaml.YAMLError as exc:
+                raise ConfigError(f"--set {key}={raw!r}: not a value ({_short(str(exc), 80)})") from exc
+            continue
         if key not in PARAM_FIELDS:
             raise ConfigError(f"--set {key}: unknown rod parameter; known: {', '.join(PARAM_FIELDS)}")
         try:
@@ -367,7 +376,10 @@ def cli_rod_sim(rod: dict[str, Any], sim: dict[str, Any], sets: list[str], dt: f
     source = f"{base} with {' '.join(given)}" if given else base
     overrides = parse_set(sets)
     rod_keys = set(schema()["properties"]["rod"]["properties"])
+    material = {**rod.get("material", {}), **overrides.pop("material", {})}
     rod = {**rod, **{k: v for k, v in overrides.items() if k in rod_keys}}
+    if material:
+        rod["material"] = material
     effects = {k: v for k, v in overrides.items() if k not in rod_keys}
     sim = dict(sim)
     for key, v in (("dt_s", dt), ("t_end_s", t_end), ("record_every", record_every), ("scheme", scheme)):

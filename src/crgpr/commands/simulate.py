@@ -67,7 +67,8 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scheme", help="spatial discretisation: variational | collocated "
                    "(config key simulation.scheme)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a rod parameter, e.g. --set E=2e6 (repeatable)")
+                   help="override a rod parameter, e.g. --set E=2e6, or a key of its material, e.g. "
+                        "--set material.bending_law=exponential (repeatable)")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--inputs", help="actuation inputs: Parquet or CSV file with t [s] and one column "
                      "per channel (tip_force_x, tip_force_y, tip_moment, tendon_tension); docs/ports.md")
