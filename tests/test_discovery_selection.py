@@ -517,8 +517,10 @@ def test_learned_law_does_not_stand_in_for_a_library_effect(st, truth, material,
 # the smallest model that reaches its own floor
 # --------------------------------------------------------------------------------------------
 def _prune(st, truth: dict[str, float], names: list[str], x0: list[float], noise_rad: float = 2e-3):
-    """The model ``names`` fitted to a one-rod record with ``truth`` hidden, then pruned; its
-    floor is the white theta noise (the gap of the right model on this simulator's own data)."""
+    """The model ``names`` fitted to a one-rod record with ``truth`` hidden, then pruned; a
+    model's floor is the white theta noise and its own discretisation error (the model fitted on
+    its grid and on one twice as fine, ``floor.discretisation_error``)."""
+    from crgpr.discovery.floor import discretisation_error
     from crgpr.discovery.prune import residual_gain, smallest_model
 
     fitter = _one_rod_record(truth, noise_rad)
@@ -527,7 +529,8 @@ def _prune(st, truth: dict[str, float], names: list[str], x0: list[float], noise
     gap = nominal.rmse
     excess = math.sqrt(max(gap**2 - noise_rad**2, 0.0))
     rows = slice(4, fitter.n - 4)
-    out, rec = smallest_model(fitter, cur, lambda f: noise_rad,
+    out, rec = smallest_model(fitter, cur, lambda f: math.hypot(noise_rad, discretisation_error(
+                                  fitter, 1e-4, tuple(f.names), f.coef, f.init)),
                               lambda f, k: residual_gain(fitter.kin, fitter.params, rows, f, k),
                               gap, excess, False, st)
     return fitter, cur, out, rec
