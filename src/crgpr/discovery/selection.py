@@ -44,8 +44,8 @@ the model's grid (``crgpr.measured.kinematics``) and the nominal model of config
    effects then passes a leave-one-effect-out test on held-out time blocks
    (``crgpr.discovery.holdout``): an effect the others make redundant out of sample leaves.
    Last, the smallest model that reaches its own floor (``crgpr.discovery.prune``): an effect
-   leaves when the model without it still closes the gap with at most ``min_gap_rad`` over its
-   own floor and the search would not add it back.
+   leaves when the model without it still closes the gap by the verdict's rule and fits within
+   its own floor, and the search would not add it back.
 4. Verdict. ``effect_found`` if effects were named that close at least ``min_explained`` of
    the gap (of its excess over the floor when the nominal gap was hidden) AND leave no excess
    over the floor above ``max(min_gap_rad, max_remaining * excess)``; else ``none`` if the
