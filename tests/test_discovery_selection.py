@@ -511,3 +511,64 @@ def test_learned_law_does_not_stand_in_for_a_library_effect(st, truth, material,
         reg = out["region"]
         assert reg["direction"] == "softer"
         assert reg["s_from_m"] <= 0.4 * fitter.params.L0 <= reg["s_to_m"]
+
+
+# --------------------------------------------------------------------------------------------
+# the smallest model that reaches its own floor
+# --------------------------------------------------------------------------------------------
+def _prune(st, truth: dict[str, float], names: list[str], x0: list[float], noise_rad: float = 2e-3):
+    """The model ``names`` fitted to a one-rod record with ``truth`` hidden, then pruned; a
+    model's floor is the white theta noise and its own discretisation error (the model fitted on
+    its grid and on one twice as fine, ``floor.discretisation_error``)."""
+    from crgpr.discovery.floor import discretisation_error
+    from crgpr.discovery.prune import residual_gain, smallest_model
+
+    fitter = _one_rod_record(truth, noise_rad)
+    cur = fitter.fit(names, np.array(x0), np.full(len(names), 0.05), st.refine_max_nfev)
+    nominal = fitter.fit([], np.zeros(0), np.zeros(0), st.refine_max_nfev)
+    gap = nominal.rmse
+    excess = math.sqrt(max(gap**2 - noise_rad**2, 0.0))
+    rows = slice(4, fitter.n - 4)
+    out, rec = smallest_model(fitter, cur, lambda f: math.hypot(noise_rad, discretisation_error(
+                                  fitter, 1e-4, tuple(f.names), f.coef, f.init)),
+                              lambda f, k: residual_gain(fitter.kin, fitter.params, rows, f, k),
+                              gap, excess, False, st)
+    return fitter, cur, out, rec
+
+
+@pytest.mark.parametrize("truth, extra", [({"stiffness_scale": 0.1}, "nonlinear_stiffness"),
+                                          ({"stiffness_scale": 0.3}, "nonlinear_stiffness"),
+                                          ({"rest_curvature": 0.5}, "stiffness_scale"),
+                                          ({"rest_curvature": 1.0}, "stiffness_scale")])
+def test_pruning_drops_an_unneeded_effect_beside_the_hidden_one(st, truth, extra):
+    """The hidden effect fitted together with an unneeded one (a cubic stiffening beside a
+    stiffness error of 10 % and 30 %; a stiffness error beside a rest curvature of 0.5 and
+    1 /m): the model without the extra effect is at its floor and the residual does not ask for
+    it back, so it leaves; the hidden effect stays with its coefficient, refitted."""
+    (k, c), = truth.items()
+    _, cur, out, rec = _prune(st, truth, [k, extra], [c, 1e-3])
+    assert out.names == [k]
+    assert out.coef[0] == pytest.approx(c, rel=0.1)
+    assert [r["effect"] for r in rec if r["dropped"]] == [extra]
+
+
+def test_pruning_keeps_two_hidden_effects_each_larger_than_the_none_threshold(st):
+    """A stiffness error and a tip mass both hidden, each moving theta by more than
+    ``min_gap_rad`` on its own: neither model without one reaches its floor, and both stay."""
+    fitter, cur, out, rec = _prune(st, {"stiffness_scale": 0.3, "tip_mass": 0.01},
+                                   ["stiffness_scale", "tip_mass"], [0.3, 0.01])
+    for k in cur.names:
+        assert fitter.effect_size(cur, k) > st.min_gap_rad
+    assert out.names == ["stiffness_scale", "tip_mass"]
+    assert rec and not any(r["dropped"] or r["at_floor_without"] for r in rec)
+
+
+def test_closes_gap_is_the_verdicts_rule_against_a_models_own_floor(st):
+    """Half the gap closed and an excess over the model's own floor within the allowance; on a
+    nominal gap within ``min_gap_rad`` of its floor, half of the excess instead."""
+    from crgpr.discovery.prune import closes_gap
+
+    assert closes_gap(0.03, 0.03, 0.1, 0.095, False, st.min_gap_rad, st)
+    assert not closes_gap(0.045, 0.03, 0.1, 0.095, False, st.min_gap_rad, st)  # 55 %, 0.034 over its floor
+    assert not closes_gap(0.055, 0.055, 0.1, 0.085, False, st.min_gap_rad, st)  # at its floor, 45 % closed
+    assert closes_gap(0.031, 0.03, 0.035, 0.02, True, st.min_gap_rad, st)  # hidden: 61 % of the excess
