@@ -409,6 +409,13 @@ def test_discovery_json_report_and_figures(runs, tmp_path):
     for f in ("report.md", "heatmap.png", "before_after.png", "residual.png"):
         assert (out / f).stat().st_size > 0
     assert "effect_found" in (out / "report.md").read_text()
+    # an effect the pruning dropped is named in the report with the model's RMSE and floor without it
+    from crgpr.report.discovery import report_markdown
+
+    res["not_needed"] = [{"effect": "air_drag", "model": ["tip_mass", "air_drag"], "rmse_without": 0.0312,
+                          "floor_without": 0.0345}]
+    text = report_markdown(res, [])
+    assert "Not needed: air_drag" in text and "0.0312" in text and "0.0345" in text
 
 
 # --------------------------------------------------------------------------------------------

@@ -8,6 +8,9 @@
 * ``locate``: where, when and in which state group the nominal model departs;
 * ``floor``: the gap with nothing missing (camera noise, initial state, discretisation);
 * ``stepwise``: entry threshold, backward elimination, swaps, indistinguishable alternatives;
+* ``holdout``: leave-one-effect-out on held-out time blocks (no effect the others make redundant);
+* ``prune``: the smallest model that reaches its own floor (effects a named model does not need);
+* ``describe``: a learned EI(s) where no library effect closes the gap (verdict ``described``);
 * ``selection``: the workflow (``discover``);
 * ``synthetic``: camera-like records of hidden-effect cases (``make_measured``).
 Figures and reports are in ``crgpr.report.discovery``; rules and CLI in

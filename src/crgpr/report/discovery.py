@@ -134,6 +134,9 @@ def report_markdown(result: dict[str, Any], files: list[str]) -> str:
         for a in result.get("indistinguishable_alternatives", []):
             lines.append(f"\nNot told apart by these data: {a['alternative']} instead of {a['named']} "
                          f"(RMSE {a['rmse']:.4f} rad, trajectory delta BIC {a['trajectory_delta_bic']:.1f}).")
+    for h in result.get("not_needed", []):
+        lines.append(f"\nNot needed: {h['effect']} (the model without it, RMSE {h['rmse_without']:.4f} rad, "
+                     f"still closes the gap and reaches its own floor {h['floor_without']:.4f} rad).")
     for h in result.get("rejected_out_of_sample", []):
         lines.append(f"\nRejected out of sample: {h['effect']} (entered {h['model']} in-sample; held-out "
                      f"evidence {h['held_out_evidence']:.1f} < holdout_min_evidence).")
