@@ -224,7 +224,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if sym == "odd" and features == "objective":
         odd = float(params.kappa0)  # symmetric section: m(2 kappa0 - kappa) = -m(kappa)
     local_m = m_cols is not None and "nu2" not in bend
-    if m_cols is not None:  # the local law m(kappa[, s]): its own noise floor
+    if m_cols is not None and full is not None:  # the local law m(kappa[, s]) of a full state: its own floor
         cfg_m["gradient_models"]["objective_models"]["m"]["sigma_n_min"] = float(cam["bending_sigma_n_min"])
     m_mask = inner_segments(params.N, 0 if local_m else trim)
     keep_m, snr_m = None, None
