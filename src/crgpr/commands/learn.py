@@ -265,9 +265,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         n_seg = int(np.count_nonzero(masks["obj_m"]))
         groups = np.tile(np.arange(n_seg), Xm.shape[0] // n_seg) if along_s["used"] else None
         rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]), groups)
-        odd = rest.mirror_about(float(params.kappa0))
-        if along_s["used"] and odd != float(params.kappa0):
-            odd = None
+        odd = rest.mirror_about(float(params.kappa0), estimate=not along_s["used"])
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")

@@ -63,13 +63,16 @@ class RestState:
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def mirror_about(self, kappa0_nominal: float) -> float | None:
+    def mirror_about(self, kappa0_nominal: float, estimate: bool = True) -> float | None:
         """The curvature the law's samples are mirrored about: none for a law that is not odd;
         the nominal kappa0 where the estimate's band contains it (the data cannot tell them
-        apart, and the nominal one is exact for the declared rod); else the estimate."""
+        apart, and the nominal one is exact for the declared rod); else the estimate, or none
+        where ``estimate`` is False (a law along s, whose rest curvature may vary along s)."""
         if not self.symmetric:
             return None
-        return kappa0_nominal if self.band_lo <= kappa0_nominal <= self.band_hi else self.kappa_rest
+        if self.band_lo <= kappa0_nominal <= self.band_hi:
+            return kappa0_nominal
+        return self.kappa_rest if estimate else None
 
 
 def heldout_blocks(n: int, blocks: int) -> list[np.ndarray]:
