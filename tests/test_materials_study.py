@@ -164,7 +164,7 @@ def test_a_nominal_bending_law_is_scored_as_the_nominal_rod_with_no_band(tmp_pat
 
     params = rod_params(load_config(SMOKE))
     x = np.linspace(-5.0, 5.0, 21)
-    mean, sd = bending_law_at_segments(tmp_path, ["obj_n1"], params, x, 100, 0)
+    mean, sd = bending_law_at_segments(tmp_path, ["obj_n1"], params, x, 100, 0, 10)
     assert mean.shape == sd.shape == (x.size, params.N) and not sd.any()
     where = np.ones((x.size, params.N), bool)
     exact = law_accuracy(mean, sd, segment_moment_law(params, x), where)

@@ -100,7 +100,7 @@ def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_t
     x = np.linspace(float(kappa.min()), float(kappa.max()), int(law_table["n_grid"]))
     where = (x[:, None] >= kappa.min(axis=0)[None, :]) & (x[:, None] <= kappa.max(axis=0)[None, :])
     mean, sd = bending_law_at_segments(model_dir, list(man["models"]), RodParams.from_dict(man["rod"]), x,
-                                       int(law_table["max_points"]), seed)
+                                       int(law_table["max_points"]), seed, int(law_table["band_blocks"]))
     return law_accuracy(mean, sd, segment_moment_law(truth, x), where)
 
 

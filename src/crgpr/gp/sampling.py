@@ -116,7 +116,7 @@ class ExactPosterior:
         """Exact posterior mean and variance of f at raw inputs x (R&W eq. 2.42)."""
         sp = self.spec
         xs = sp.standardise(x)
-        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.ell)  # (n, m)
+        Ks = kernel_matrix(sp.kernel, sp.Xs, xs, sp.sigma_f, sp.ell)  # (n, m)
         hs = sp.basis_fn(xs)
         mean = sp.to_output(hs @ self.beta_bar + Ks.T @ self.alpha)
         v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
@@ -130,9 +130,9 @@ class ExactPosterior:
         """Exact posterior covariance matrix of f at raw inputs x (m, m)."""
         sp = self.spec
         xs = sp.standardise(x)
-        Ks = se_kernel(sp.Xs, xs, sp.sigma_f, sp.ell)
+        Ks = kernel_matrix(sp.kernel, sp.Xs, xs, sp.sigma_f, sp.ell)
         v = sla.solve_triangular(self.chol, Ks, lower=True, check_finite=False)
-        C = se_kernel(xs, xs, sp.sigma_f, sp.ell) - v.T @ v
+        C = kernel_matrix(sp.kernel, xs, xs, sp.sigma_f, sp.ell) - v.T @ v
         if self.H.shape[1]:
             R = sp.basis_fn(xs).T - self.H.T @ self.solve(Ks)
             C = C + R.T @ self.beta_cov @ R
@@ -140,11 +140,12 @@ class ExactPosterior:
 
 
 def exact_posterior(spec: GP, block: int = 4096) -> ExactPosterior:
-    """Factorise K_y = K + sigma_n^2 I and the basis posterior (O(n^3), done once per GP)."""
+    """Factorise K_y = K + sigma_n^2 I and the basis posterior (O(n^3), done once per GP), with the
+    GP's own kernel (the sparse posterior and the RFF samplers need SE / ARD-SE)."""
     n = spec.Xs.shape[0]
     K = np.empty((n, n))
     for i in range(0, n, block):
-        K[i:i + block] = se_kernel(spec.Xs[i:i + block], spec.Xs, spec.sigma_f, spec.ell)
+        K[i:i + block] = kernel_matrix(spec.kernel, spec.Xs[i:i + block], spec.Xs, spec.sigma_f, spec.ell)
     K[np.diag_indices(n)] += spec.sigma_n**2
     chol = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
     del K
@@ -706,7 +707,8 @@ def compression_error(samples: PathwiseSamples, comp: CompressedSamples, x: np.n
 def subset_spec(spec: GP, idx: np.ndarray) -> GP:
     """The same GP (hyperparameters, standardisation) conditioned on the rows ``idx`` only."""
     return GP.from_standardised(spec.Xs[idx], spec.y[idx], spec.sigma_f, spec.ell, spec.sigma_n, spec.basis,
-                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name,
+                                kernel=spec.kernel)
 
 
 def scaled_spec(spec: GP, c: float) -> GP:
@@ -716,7 +718,8 @@ def scaled_spec(spec: GP, c: float) -> GP:
     if not c > 0:
         raise ValueError(f"{spec.name}: posterior scale must be > 0, got {c}")
     return GP.from_standardised(spec.Xs, spec.y, c * spec.sigma_f, spec.ell, c * spec.sigma_n, spec.basis,
-                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name)
+                                spec.x_mean, spec.x_std, spec.out_mean, spec.out_scale, spec.name,
+                                kernel=spec.kernel)
 
 
 def _posterior_mean_std(post: ExactPosterior | SparsePosterior, xs: np.ndarray) -> np.ndarray:
@@ -727,7 +730,7 @@ def _posterior_mean_std(post: ExactPosterior | SparsePosterior, xs: np.ndarray) 
     if isinstance(post, SparsePosterior):
         beta, a = post.mean_coefficients()
         return sp.basis_fn(xs) @ beta + se_kernel(xs, post.Z, sp.sigma_f, sp.ell) @ a
-    return sp.basis_fn(xs) @ post.beta_bar + se_kernel(xs, sp.Xs, sp.sigma_f, sp.ell) @ post.alpha
+    return sp.basis_fn(xs) @ post.beta_bar + kernel_matrix(sp.kernel, xs, sp.Xs, sp.sigma_f, sp.ell) @ post.alpha
 
 
 HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")

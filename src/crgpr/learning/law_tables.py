@@ -11,7 +11,14 @@ both sides, the other inputs at their training medians:
   a seeded subset of at most ``max_points`` of its training points (an exact sd over all n
   points would cost O(n^3); conditioning on fewer points can only widen the sd, so the band is
   conservative inside the covered range and exact in its growth beyond it, where the basis
-  coefficients' uncertainty and the prior variance take over);
+  coefficients' uncertainty and the prior variance take over), multiplied by ``sd_scale`` =
+  max(1, c), c the delete-a-block jackknife scale over ``band_blocks`` contiguous time blocks
+  of those points (``crgpr.gp.sampling.heldout_block_scale``, the UQ path's ``heldout_jackknife``):
+  the targets' errors are correlated along the trajectory, so where the mean moves more when
+  one block is left out than the latent band allows (a law learned from exact full-state
+  moments: sigma_n ~ 1e-5 of the law, its finite-difference targets' systematic error not in
+  it) the band widens by that factor; it is never narrowed (the jackknife of a local estimator
+  does not see extrapolation, the latent band does). ``band_blocks`` 0: the latent band;
 * ``nominal``: the nominal rod's law at the same inputs (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 -
   nu2_0), m = EI (kappa - kappa0));
 * ``covered``: whether x_j lies inside [lo_j, hi_j];
@@ -30,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
+from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
 from crgpr.physics.params import RodParams
 
 LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
@@ -56,24 +64,29 @@ def _mean(stem: Path, X: np.ndarray) -> np.ndarray:
     return np.asarray(ev(X[:, 0]) if isinstance(ev, Table1D) else ev(X), dtype=float).ravel()
 
 
-def _sd_model(stem: Path, max_points: int, seed: int) -> GP:
-    gp = GP.load(stem)
-    idx = np.arange(gp.n)
-    if gp.n > max_points:
-        idx = np.sort(np.random.default_rng(seed).choice(gp.n, size=max_points, replace=False))
-    return GP.from_standardised(gp.Xs[idx], gp.y[idx], gp.sigma_f, gp.lengthscales, gp.sigma_n, gp.basis,
-                                gp.x_mean, gp.x_scale, float(gp.y_mean[0]), float(gp.y_scale[0]),
-                                kernel=gp.kernel)
+def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple[GP, float]:
+    """The GP of a law's band (module docstring, ``sd``) and its ``sd_scale``."""
+    from crgpr.uq.samples import load_gp_spec  # rows time-major, an odd law's reflections interleaved
+
+    spec, _, _ = load_gp_spec(stem, stem.name, sampled=False)
+    idx = np.arange(spec.Xs.shape[0])
+    if idx.size > max_points:
+        idx = np.sort(np.random.default_rng(seed).choice(idx.size, size=max_points, replace=False))
+    gp = subset_spec(spec, idx)
+    c = 1.0
+    if band_blocks and idx.size >= 2 * band_blocks:
+        c = max(1.0, float(heldout_block_scale(gp, band_blocks, None, "jackknife", max_points)[0]))
+    return (scaled_spec(gp, c) if c > 1.0 else gp), c
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
-              max_points: int, seed: int, s_points: int) -> pd.DataFrame:
+              max_points: int, seed: int, s_points: int, band_blocks: int) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
-    covered_lo, covered_hi, sd_points, at_s."""
+    covered_lo, covered_hi, sd_points, sd_scale, at_s."""
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
-    sd_gp = _sd_model(stem, max_points, seed)
+    sd_gp, c = _sd_model(stem, max_points, seed, band_blocks)
     med = np.median(Xt, axis=0)
     js = features.index("s") if "s" in features else None
     s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
@@ -92,26 +105,27 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
                                       "sd": np.sqrt(np.asarray(var, dtype=float).ravel()),
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
-                                      "sd_points": int(sd_gp.n), "at_s": float(sv)}))
+                                      "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
+                                      "at_s": float(sv)}))
     return pd.concat(rows, ignore_index=True)
 
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
                seed: int) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
-    ``camera.learn.law_table``: n_grid, pad, max_points, s_points)."""
+    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks)."""
     out = []
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
                              float(settings["pad"]), int(settings["max_points"]), seed,
-                             int(settings["s_points"])))
+                             int(settings["s_points"]), int(settings["band_blocks"])))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
 
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
-                            max_points: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+                            max_points: int, seed: int, band_blocks: int) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
@@ -128,7 +142,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         med = np.median(np.asarray(f["X"], dtype=float), axis=0)
-    sd_gp = _sd_model(stem, max_points, seed)
+    sd_gp, _ = _sd_model(stem, max_points, seed, band_blocks)
     s = segment_arclength(N, params.ds)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
     for j in range(N):

@@ -152,18 +152,20 @@ def select_samples(smp: Any, keep: np.ndarray) -> Any:
 # stage 1: samples of every gradient GP
 
 
-def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np.ndarray | None]:
+def load_gp_spec(stem: str | Path, name: str, sampled: bool = True
+                 ) -> tuple[GP, np.ndarray | None, np.ndarray | None]:
     """Read a ``crgpr.gp.GP.save`` model (stem.npz + stem.json) into a GP without the
     O(n^3) factorisation ``GP.load`` performs; also return the standardised inducing inputs
     ``dtc_Z`` of the rollout's DTC mean and the 1D table grid ``table_x`` (gradient_models.py)
-    when the file has them."""
+    when the file has them. ``sampled``: the GP is to be RFF-sampled (an SE / ARD-SE kernel is
+    then required)."""
     stem = Path(stem)
     npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
     for p in (npz, js):
         if not p.exists():
             raise FileNotFoundError(f"{p}: gradient model file missing (run the gradient_models rule)")
     meta = json.loads(js.read_text())
-    if meta.get("kernel") != "se":
+    if sampled and meta.get("kernel") != "se":
         raise ValueError(f"{js}: kernel {meta.get('kernel')!r}; RFF sampling needs SE / ARD-SE")
     with np.load(npz, allow_pickle=False) as a:
         arr = {k: a[k] for k in a.files}
@@ -180,7 +182,7 @@ def load_gp_spec(stem: str | Path, name: str) -> tuple[GP, np.ndarray | None, np
     spec = GP.from_standardised(
         (X - x_mean) / x_scale, (Y.ravel() - y_mean) / y_scale, float(meta["sigma_f_std"]),
         np.broadcast_to(np.ravel(arr["lengthscales"]), (X.shape[1],)), float(meta["sigma_n_std"]),
-        str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name)
+        str(meta["basis"]), x_mean, x_scale, y_mean, y_scale, name, kernel=str(meta["kernel"]))
     Z = arr.get("dtc_Z")
     Z = None if Z is None else np.atleast_2d(np.asarray(Z, dtype=float))
     grid = arr.get("table_x")

@@ -1,0 +1,75 @@
+"""The learned law's 95 % band (laws.parquet ``sd``): the latent posterior widened by the
+delete-a-block jackknife where the targets' errors run along the trajectory, never narrowed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from crgpr.gp import fit_gp
+from crgpr.learning.law_tables import law_table
+from paper_rod import PAPER_ROD
+
+EI = 0.02
+
+
+def _saved_law(tmp_path, err: np.ndarray, kappa: np.ndarray, name: str = "obj_m") -> str:
+    """A bending law m(kappa) = EI kappa + err fitted with a tiny noise and saved as a model."""
+    gp = fit_gp(kappa[:, None], EI * kappa + err, kernel="se", basis="linear", sigma_n_min=1e-7,
+                standardise_y=True, seed=0)
+    stem = tmp_path / name
+    gp.save(stem, extra={"features": ["kappa"]})
+    return str(stem)
+
+
+def _kappa(n_t: int = 400) -> np.ndarray:
+    """A decaying oscillation of one segment's curvature, time-major (as the training rows)."""
+    t = np.linspace(0.0, 2.0, n_t)
+    return 20.0 * np.exp(-0.5 * t) * np.cos(2.0 * np.pi * 2.0 * t)
+
+
+def _band(tmp_path, err: np.ndarray, blocks: int):
+    kappa = _kappa(err.size)
+    stem = _saved_law(tmp_path, err, kappa)
+    tab = law_table(stem, "obj_m", ["kappa"], PAPER_ROD, n_grid=61, pad=0.0, max_points=400, seed=0,
+                    s_points=3, band_blocks=blocks)
+    return tab, kappa
+
+
+def test_a_systematic_error_along_the_trajectory_widens_the_band_to_hold_the_true_law(tmp_path):
+    """Targets off by a slowly drifting 2 % of the law (a finite-difference bias that changes
+    along the record): the latent band, sigma_n ~ 1e-7, misses the true law; the jackknife
+    band (sd_scale > 1) holds it over most of the covered range."""
+    t = np.linspace(0.0, 2.0, 400)
+    err = 0.02 * EI * 20.0 * np.sin(2.0 * np.pi * t / 1.3)
+    latent, _ = _band(tmp_path, err, 0)
+    wide, _ = _band(tmp_path, err, 10)
+    truth = EI * latent["x"].to_numpy()
+    inside = lambda tab: np.mean(np.abs(tab["mean"] - truth) <= 1.96 * tab["sd"])  # noqa: E731
+    assert (latent["sd_scale"] == 1.0).all() and (wide["sd_scale"] > 1.0).all()
+    np.testing.assert_allclose(wide["sd"] / latent["sd"], wide["sd_scale"], rtol=1e-6)
+    np.testing.assert_allclose(wide["mean"], latent["mean"], rtol=0, atol=1e-12)
+    assert inside(latent) < 0.9 <= inside(wide)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_independent_noise_leaves_the_latent_band(tmp_path, seed):
+    """Noise independent from sample to sample: the jackknife moves the mean no more than the
+    latent posterior says, so the scale is 1 (never below: the band is not narrowed)."""
+    err = np.random.default_rng(seed).normal(0.0, 1e-3 * EI * 20.0, 400)
+    tab, _ = _band(tmp_path, err, 10)
+    assert (tab["sd_scale"] == 1.0).all()
+
+
+def test_a_matern_law_gets_its_own_kernels_band(tmp_path):
+    """A law fitted with a Matern-5/2 kernel: the table's mean and latent sd are that GP's own
+    posterior (the band's exact posterior uses the model's kernel, not SE)."""
+    kappa = _kappa(200)
+    gp = fit_gp(kappa[:, None], EI * kappa + 1e-4 * np.sin(kappa), kernel="matern52", basis="linear",
+                standardise_y=True, seed=0)
+    gp.save(tmp_path / "obj_m", extra={"features": ["kappa"]})
+    tab = law_table(tmp_path / "obj_m", "obj_m", ["kappa"], PAPER_ROD, n_grid=31, pad=0.2, max_points=400,
+                    seed=0, s_points=3, band_blocks=4)
+    mean, var = gp.predict(tab["x"].to_numpy()[:, None], return_var=True)
+    np.testing.assert_allclose(tab["mean"], np.ravel(mean), rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(tab["sd"] / tab["sd_scale"], np.sqrt(np.ravel(var)), rtol=1e-5)
