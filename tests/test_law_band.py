@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from paper_rod import PAPER_ROD
 
 from crgpr.gp import fit_gp
 from crgpr.learning.law_tables import law_table
-from paper_rod import PAPER_ROD
 
 EI = 0.02
 

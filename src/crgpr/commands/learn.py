@@ -328,7 +328,8 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
     if tab.empty:
         return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
     write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
-                                         "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale (SI units)"})
+                                         "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale "
+                                         "(SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
     return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 

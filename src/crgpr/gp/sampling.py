@@ -730,7 +730,8 @@ def _posterior_mean_std(post: ExactPosterior | SparsePosterior, xs: np.ndarray) 
     if isinstance(post, SparsePosterior):
         beta, a = post.mean_coefficients()
         return sp.basis_fn(xs) @ beta + se_kernel(xs, post.Z, sp.sigma_f, sp.ell) @ a
-    return sp.basis_fn(xs) @ post.beta_bar + kernel_matrix(sp.kernel, xs, sp.Xs, sp.sigma_f, sp.ell) @ post.alpha
+    k = kernel_matrix(sp.kernel, xs, sp.Xs, sp.sigma_f, sp.ell)
+    return sp.basis_fn(xs) @ post.beta_bar + k @ post.alpha
 
 
 HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")
