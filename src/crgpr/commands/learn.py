@@ -259,12 +259,13 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if sym == "auto" and features == "objective" and "obj_m" in trained:
         # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples;
         # a law that varies along s: each segment's law has coefficients of its own about one rest
-        # curvature, and is mirrored only about the nominal kappa0, where that c's band holds it (a
+        # curvature, and is mirrored only about the nominal kappa0, where the data cannot tell it from c (a
         # rest curvature other than the declared one may vary along s, which one c cannot represent)
         Xm, ym = training_data(arr, params, "obj_m", None, masks["obj_m"])
         n_seg = int(np.count_nonzero(masks["obj_m"]))
         groups = np.tile(np.arange(n_seg), Xm.shape[0] // n_seg) if along_s["used"] else None
-        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]), groups)
+        rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]), groups,
+                          float(params.kappa0))
         odd = rest.mirror_about(float(params.kappa0), estimate=not along_s["used"])
     out = Path(out_dir)
     if out.exists() and not out.is_dir():

@@ -27,6 +27,12 @@ rest curvature and the symmetry are decided from the samples (kappa_i, m_i) of t
   samples of one trajectory are correlated in time, so a per-sample criterion (BIC) would take
   any small asymmetry of one record for a law.
 * the band of c: the delete-a-block jackknife over the same blocks, c +- 1.96 se (95 %).
+* the nominal rest curvature kappa0 (where given): the odd law about kappa0 against the odd law
+  about each held-out fit's own c, on the same blocks and by the same rule. The jackknife band
+  of c measures only how much c moves between blocks; from noise-free full-state moments it is
+  a few 1e-3 /m wide and a small misfit of the polynomial law moves c by more (a graded rod,
+  odd about 0: c = 0.0063 /m, band 0.0007-0.0119), so the band alone would refuse kappa0 where
+  the data predict no better with c. kappa0 is used where either holds (``mirror_about``).
 
 Noisy curvature inputs (camera data) attenuate the fitted slope (errors in variables), which
 moves c away from the samples' mean curvature; the jackknife band does not include that bias.
@@ -59,18 +65,26 @@ class RestState:
     symmetric: bool  # the odd law is used: samples mirrored about kappa_rest
     degree: int
     blocks: int
+    kappa0_nominal: float | None = None  # the nominal rest curvature compared (None: not compared) [1/m]
+    heldout_mse_nominal: float | None = None  # held-out-block mean squared error of the odd law about it
+    heldout_log_ratio_nominal: float | None = None  # mean over blocks of log(about kappa0 / about c) [-]
+    heldout_log_ratio_nominal_se: float | None = None  # its standard error over the blocks [-]
+    nominal_rejected: bool | None = None  # the odd law about c predicts consistently better than about kappa0
 
     def to_dict(self) -> dict:
         return asdict(self)
 
     def mirror_about(self, kappa0_nominal: float, estimate: bool = True) -> float | None:
         """The curvature the law's samples are mirrored about: none for a law that is not odd;
-        the nominal kappa0 where the estimate's band contains it (the data cannot tell them
-        apart, and the nominal one is exact for the declared rod); else the estimate, or none
-        where ``estimate`` is False (a law along s, whose rest curvature may vary along s)."""
+        the nominal kappa0 where the data cannot tell it from the estimate (the estimate's band
+        contains it, or the held-out blocks do not predict consistently better about the
+        estimate than about kappa0) — the nominal one is exact for the declared rod; else the
+        estimate, or none where ``estimate`` is False (a law along s, whose rest curvature may
+        vary along s)."""
         if not self.symmetric:
             return None
-        if self.band_lo <= kappa0_nominal <= self.band_hi:
+        compared = self.kappa0_nominal is not None and self.kappa0_nominal == kappa0_nominal
+        if self.band_lo <= kappa0_nominal <= self.band_hi or (compared and not self.nominal_rejected):
             return kappa0_nominal
         return self.kappa_rest if estimate else None
 
@@ -178,14 +192,15 @@ def _general_design(kappa: np.ndarray, center: float, scale: float, degree: int)
 
 
 def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
-               groups: np.ndarray | None = None) -> RestState:
+               groups: np.ndarray | None = None, kappa0: float | None = None) -> RestState:
     """Rest curvature, its 95 % band and the symmetry decision from law samples (see module doc).
 
     ``kappa``, ``m``: (n,) curvature inputs and bending-moment targets, rows in time order;
     ``degree``: D, the odd degree of the law c is fitted with and the degree of the general law
     (the odd law it is compared with has degree 2 D + 1); ``blocks``: contiguous held-out blocks
     (>= 2); ``groups``: (n,) labels of samples that share a law (the segments of a law that
-    varies along the rod): each group has coefficients of its own, all share one rest curvature c.
+    varies along the rod): each group has coefficients of its own, all share one rest curvature c;
+    ``kappa0``: the nominal rest curvature, compared on the held-out blocks with c (module doc).
     """
     kappa = np.asarray(kappa, dtype=float).ravel()
     m = np.asarray(m, dtype=float).ravel()
@@ -199,7 +214,7 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
     center = float(kappa.mean())
     scale = float(kappa.std()) or 1.0
     c = _odd_fit(kappa, m, degree, scale, rows)
-    cs, diff, e_odd, e_gen = [], [], 0.0, 0.0
+    cs, diff, d_nom, e_odd, e_gen, e_nom = [], [], [], 0.0, 0.0, 0.0
     for test in heldout_blocks(kappa.size, blocks):
         cb = _odd_fit(kappa[~test], m[~test], degree, scale, _subset_rows(rows, ~test))
         cs.append(cb)
@@ -208,16 +223,27 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
         eg = _heldout_error(kappa, m, ~test, test, lambda k: _general_design(k, center, scale, degree), rows)
         e_odd, e_gen = e_odd + eo, e_gen + eg
         diff.append(log_error_ratio(eo, eg))
+        if kappa0 is not None:
+            en = _heldout_error(kappa, m, ~test, test,
+                                lambda k: _odd_design((k - kappa0) / scale, 2 * degree + 1), rows)
+            e_nom += en
+            d_nom.append(log_error_ratio(en, eo))
     se = jackknife_se(np.array(cs))
     mse_odd, mse_gen = e_odd / kappa.size, e_gen / kappa.size
     # the general law only where it predicts the held-out blocks consistently better: the mean
     # over blocks of log(odd error / general error) above 1.96 of its standard error (blocks as
     # independent units; the log ratio is scale-free, so blocks of larger curvature do not dominate)
     mean, ratio_se, general = consistent_gain(np.array(diff))
+    nominal = {}
+    if kappa0 is not None:
+        n_mean, n_se, rejected = consistent_gain(np.array(d_nom))
+        nominal = {"kappa0_nominal": float(kappa0), "heldout_mse_nominal": e_nom / kappa.size,
+                   "heldout_log_ratio_nominal": n_mean, "heldout_log_ratio_nominal_se": n_se,
+                   "nominal_rejected": rejected}
     return RestState(kappa_rest=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se, se=se,
                      heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
                      heldout_log_ratio=mean, heldout_log_ratio_se=ratio_se,
-                     symmetric=not general, degree=int(degree), blocks=int(blocks))
+                     symmetric=not general, degree=int(degree), blocks=int(blocks), **nominal)
 
 
 def _subset_rows(rows: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
