@@ -36,7 +36,8 @@ import pandas as pd
 import yaml
 
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, load_learned, rollout_settings
+from crgpr.commands.learn import learn, load_learned
+from crgpr.commands.rollout import rollout_settings
 from crgpr.config import load_config, rod_params
 from crgpr.io import write_parquet
 from crgpr.learning.learned import rollout

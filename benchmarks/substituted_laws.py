@@ -20,7 +20,8 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from crgpr.commands.learn import load_learned, rollout_settings
+from crgpr.commands.learn import load_learned
+from crgpr.commands.rollout import rollout_settings
 from crgpr.config import load_config, rod_params
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw

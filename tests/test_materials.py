@@ -18,7 +18,7 @@ from paper_rod import paper_rod, paper_sim
 
 from crgpr.cli import main
 from crgpr.config import ConfigError, load_config
-from crgpr.physics.integrator import _force_tangent
+from crgpr.physics.kernels import _force_tangent
 from crgpr.physics.material import Material
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import (

@@ -9,7 +9,8 @@ import pytest
 from conftest import SMOKE
 
 from crgpr.cli import main
-from crgpr.commands.learn import initial_state, learn, load_learned, read_manifest
+from crgpr.commands.learn import learn, load_learned, read_manifest
+from crgpr.commands.rollout import initial_state
 from crgpr.config import load_config, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning import features as ft

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.commands.learn import learn, load_learned, rollout_models, rollout_settings, try_rollout
+from crgpr.commands.learn import learn, load_learned
+from crgpr.commands.rollout import rollout_models, rollout_settings, try_rollout
 from crgpr.config import CAMERA_METHOD
 from crgpr.io import atomic_path, read_parquet, write_csv, write_json, write_parquet
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, trajectory_frame

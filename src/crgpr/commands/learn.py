@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.config import ConfigError, add_config_options, cli_config, rod_params, sim_settings
+from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
@@ -61,7 +61,7 @@ from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, trai
 from crgpr.learning.law_choice import bending_arclength, grey_box
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
-from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod, learned_energy, rollout
+from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod
 from crgpr.learning.nominal import (
     NOMINAL_LAWS,
     NominalLaw,
@@ -70,12 +70,11 @@ from crgpr.learning.nominal import (
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
-from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
 from crgpr.physics.rod import node_weights
 from crgpr.physics.signals import Inputs, read_inputs
-from crgpr.physics.simulate import Trajectory, trajectory_frame
+from crgpr.physics.simulate import Trajectory
 
 MANIFEST = "manifest.json"
 LAW_TABLE, LAW_FIGURE = "laws.parquet", "laws.png"
@@ -335,6 +334,14 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
     return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 
 
+def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
+    """``st`` if its step is stable for the model's rod, else a one-line ConfigError."""
+    if st.dt >= params.dt_stable():
+        raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
+                          f"need < {params.dt_stable():.3g} s")
+    return st
+
+
 def read_manifest(model_dir: str | Path) -> dict[str, Any]:
     """The manifest of a ``crgpr learn`` model directory (clear error if absent)."""
     path = Path(model_dir) / MANIFEST
@@ -388,102 +395,6 @@ def learned_damping(man: dict[str, Any]) -> float:
     return 0.0 if not fit else float(fit["coefficient"])
 
 
-def rollout_settings(cfg: dict[str, Any], params: RodParams, t_end: float | None) -> SimSettings:
-    """The config's integrator settings (dt, record_every), optionally another t_end; dt checked."""
-    base = sim_settings(cfg)
-    if t_end is not None and not (math.isfinite(t_end) and t_end > 0):
-        raise ConfigError(f"--t-end {t_end}: must be a positive number of seconds")
-    return checked_step(SimSettings(dt=base.dt, t_end=base.t_end if t_end is None else float(t_end),
-                                    record_every=base.record_every, scheme=base.scheme), params)
-
-
-def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
-    """``st`` if its step is stable for the model's rod, else a one-line ConfigError."""
-    if st.dt >= params.dt_stable():
-        raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
-                          f"need < {params.dt_stable():.3g} s")
-    return st
-
-
-def initial_state(path: str | Path, cfg: dict[str, Any], params: RodParams, prefilter_method: str = "gp"
-                  ) -> tuple[np.ndarray, np.ndarray, float, dict[str, Any]]:
-    """A rollout's initial state (q0, p0 per length, t0) from the first frame of a measured file
-    (the format of ``--measured``, on the model's node grid), and how it was obtained.
-
-    A full-state file gives x, y, theta and the momenta of its first frame as they are. From
-    positions only, the state is derived as ``crgpr learn`` derives its training state
-    (``learning.camera.positions_to_state``: the ``prefilter_method`` position GPs over the whole
-    record, whose time derivatives give the velocities, hence p = rho A v, rho I omega), taken at
-    the first frame it keeps (``camera.learn.edge_trim_s`` after the record's start, where the
-    GP derivatives are no longer end-affected)."""
-    table = read_measured(path)
-    screen = ScreenSettings.from_config(cfg["discovery"])
-    meas = validate_frame(table, str(path), params.L0, params.ds, screen)
-    full = _full_state_momenta(table, str(path), meas.t.size, meas.x.shape[1])
-    if full is not None:
-        check_node_grid(meas, params)
-        theta, p = full
-        q0 = np.stack([meas.x[0], meas.y[0], theta[0]], axis=-1)
-        return q0, p[0].copy(), float(meas.t[0]), {"initial": "first frame of a full-state file",
-                                                  "t0_s": float(meas.t[0])}
-    st = LearnSettings.from_config(cfg["camera"]["learn"])
-    arr, _ = positions_to_state(meas, params, prefilter_method, st, int(cfg["seed"]) + 3000)
-    q0 = np.stack([arr["x"][0], arr["y"][0], arr["theta"][0]], axis=-1)
-    p0 = np.stack([arr[c][0] for c in MOMENTUM_COLUMNS], axis=-1)
-    return q0, p0, float(arr["t"][0]), {"initial": f"positions, {prefilter_method} prefilter state at its "
-                                        "first kept frame", "t0_s": float(arr["t"][0])}
-
-
-def rollout_models(cfg: dict[str, Any], model_dir: str | Path, theta0_deg: float | None, out: str | Path,
-                   energy_out: str | Path | None = None, t_end: float | None = None,
-                   label: str | None = None, inputs_file: str | Path | None = None,
-                   initial: str | Path | None = None) -> Trajectory:
-    """Roll a ``crgpr learn`` model directory out from the straight rod at rest at ``theta0_deg``
-    or from the first frame of the measured file ``initial`` (``initial_state``), driven by the
-    actuation inputs of ``inputs_file`` (with the G of the model's manifest, else of the config's
-    ``ports``) besides the model's gravity. Every input is checked before anything is written."""
-    model, man = load_learned(model_dir)
-    st = rollout_settings(cfg, model.params, t_end)
-    if (theta0_deg is None) == (initial is None):
-        raise ConfigError("give exactly one of --theta0 and --initial")
-    init = None
-    if initial is not None:
-        q0, p0, t_init, how = initial_state(initial, cfg, model.params, man["prefilter"])
-        if q0.shape != (model.params.N + 1, 3):
-            raise MeasuredDataError(f"{initial}: {q0.shape[0]} nodes, the model has N + 1 = "
-                                    f"{model.params.N + 1}")
-        init = (q0, p0, t_init)
-        theta0_deg = math.nan
-    inputs, ports = None, None
-    if inputs_file is not None:
-        t_init = 0.0 if init is None else init[2]
-        inputs = read_inputs(inputs_file, t_init + st.t_end, t_init)
-        ports = Ports(float(man["ports"]["tendon_offset_m"])) if man.get("ports") else ports_from_config(cfg)
-    label = label or f"{man['features']}/{man['prefilter']} model {model_dir}"
-    where = f"theta0 = {theta0_deg:g} deg" if init is None else f"the first frame of {initial}"
-    t0 = time.perf_counter()
-    traj = rollout(model, theta0_deg, st, what=f"{label} from {where}", inputs=inputs, ports=ports,
-                   initial=init)
-    meta = {"kind": "rollout", "method": label, "theta0_deg": theta0_deg, "features": man["features"],
-            "prefilter": man["prefilter"], "model_dir": str(model_dir), "trained_on": man["source"],
-            "seconds": time.perf_counter() - t0, "rod": model.params.to_dict(), "simulation": st.to_dict(),
-            "initial": None if init is None else {"file": str(initial), **how},
-            "inputs": None if inputs is None else inputs.describe(),
-            "ports": None if ports is None else ports.to_dict()}
-    write_parquet(trajectory_frame(traj), out, meta)
-    if energy_out is not None:
-        write_parquet(learned_energy(model, traj, st.dt), energy_out, {**meta, "kind": "rollout_energy"})
-    return traj
-
-
-def try_rollout(model: LearnedRod, theta0_deg: float, st: SimSettings) -> tuple[Trajectory | None, dict]:
-    """A rollout that records a divergence instead of raising (for sweeps)."""
-    try:
-        return rollout(model, theta0_deg, st), {"diverged": False}
-    except SimulationDiverged as exc:
-        return None, {"diverged": True, "diverged_t_s": exc.t, "diverged_node": exc.node}
-
-
 def add_cli(sub: Any) -> None:
     p = sub.add_parser("learn", help="train CR-GPR gradient models from a trajectory file",
                        description="Train the gradient GPs of CR-GPR from measured positions "
@@ -512,4 +423,4 @@ def _cli(args: Any) -> None:
 
 
 __all__ = ["learn", "load_learned", "learned_components", "learned_damping", "learned_models",
-           "read_manifest", "rollout_models", "try_rollout", "model_names"]
+           "read_manifest", "model_names"]

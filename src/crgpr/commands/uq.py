@@ -92,13 +92,8 @@ def uq_rollout_learned(samples_dir: str, model_dir: str, method: str, angles: Se
     learned GPs replaced by their samples (``samples_dir``, from ``uq_samples_learned``), its
     nominal laws kept (``commands.learn.learned_components``: the assembly of the mean model), on
     the rod of its manifest, with the config's integrator settings."""
-    from crgpr.commands.learn import (
-        learned_components,
-        learned_damping,
-        learned_models,
-        read_manifest,
-        rollout_settings,
-    )
+    from crgpr.commands.learn import learned_components, learned_damping, learned_models, read_manifest
+    from crgpr.commands.rollout import rollout_settings
 
     settings = UQSettings.from_section(dict(uq))
     man = read_manifest(model_dir)

@@ -61,6 +61,8 @@ import math
 import numpy as np
 from numba import njit
 
+from crgpr.physics.stencils import _segment_strains
+
 
 @njit(cache=True)
 def _nodal_strains(q, i, ds):
@@ -92,13 +94,7 @@ def _collocated_forces(q, ds, EA, GA, EI_seg, kappa0, nu1_0, nu2_0, b_nl, k_base
     V = 0.0
     # segments: translational fluxes q_{j+1/2} and bending moments m_{j+1/2}
     for j in range(n):
-        ex = (q[j + 1, 0] - q[j, 0]) / ds
-        ey = (q[j + 1, 1] - q[j, 1]) / ds
-        tb = 0.5 * (q[j, 2] + q[j + 1, 2])
-        c = math.cos(tb)
-        s = math.sin(tb)
-        nu1 = c * ex + s * ey
-        nu2 = -s * ex + c * ey
+        ex, ey, c, s, nu1, nu2 = _segment_strains(q, j, ds)
         n1 = EA * (nu1 - nu1_0)
         n2 = GA * (nu2 - nu2_0)
         qx = n1 * c - n2 * s

@@ -4,7 +4,7 @@ The stored energy per length is W = W_b(dk; s) + W_s(e) + GA (nu2 - nu2^0)^2 / 2
 nonlinear bending and stretch parts), with dk = kappa - kappa^0(s), e = nu1 - nu1^0. Each law
 is one energy density and its derivatives, implemented once here (``bend_law``,
 ``stretch_law``) and called by the variational force kernel (``rod._internal_forces``), its
-tangent (``integrator._force_tangent``) and the vectorised ``rod.strains``:
+tangent (``kernels._force_tangent``) and the vectorised ``rod.strains``:
 
 bending (``bending_law``; EI = EI(s) of the profile and defect below; b = ``nonlinear_stiffness``)
     linear       m = EI dk (1 + b dk^2)             W_b = EI (dk^2 / 2 + b dk^4 / 4)

@@ -51,6 +51,7 @@ from numba import njit
 from crgpr.physics.collocated import _collocated_forces, _nodal_forces
 from crgpr.physics.material import axial_force, bend_law, bending_moment, stretch_law
 from crgpr.physics.params import SCHEMES, RodParams
+from crgpr.physics.stencils import _segment_strains
 
 STATE_NAMES: tuple[str, ...] = ("x", "y", "theta", "p_x", "p_y", "p_theta")
 
@@ -108,13 +109,7 @@ def _internal_forces(q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, 
         F[i, 2] = 0.0
     V = 0.0
     for j in range(n):
-        ex = (q[j + 1, 0] - q[j, 0]) / ds
-        ey = (q[j + 1, 1] - q[j, 1]) / ds
-        tb = 0.5 * (q[j, 2] + q[j + 1, 2])
-        c = math.cos(tb)
-        s = math.sin(tb)
-        nu1 = c * ex + s * ey
-        nu2 = -s * ex + c * ey
+        ex, ey, c, s, nu1, nu2 = _segment_strains(q, j, ds)
         dk = (q[j + 1, 2] - q[j, 2]) / ds - (kappa0 + kap_seg[j])
         n1, w_s, _ = stretch_law(law, EA, nu1 - nu1_0)
         n2 = GA * (nu2 - nu2_0)
