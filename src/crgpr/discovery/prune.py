@@ -29,13 +29,11 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from crgpr.discovery.effects import EFFECT_NAMES
 from crgpr.discovery.regression import Regression
 from crgpr.discovery.residual import residual
 from crgpr.discovery.settings import DiscoverySettings
-from crgpr.discovery.stepwise import trajectory_delta_bic
+from crgpr.discovery.stepwise import drop_weakest
 from crgpr.discovery.trajectory import TrajectoryFit, TrajectoryFitter, augmented_params
 from crgpr.measured.kinematics import Kinematics
 from crgpr.physics.params import RodParams
@@ -75,34 +73,24 @@ def smallest_model(fitter: TrajectoryFitter, cur: TrajectoryFit, floor_of: Calla
     tested. ``floor_of(fit)`` is a model's own floor [rad]; ``residual_gain(fit, k)`` the BIC
     gain of candidate ``k`` in the cut-moment residual against the model ``fit``. Only a model
     that closes the gap by the verdict's rule is pruned."""
-    records: list[dict[str, Any]] = []
     allowance = max(st.min_gap_rad, st.max_remaining * excess)
     if not closes_gap(cur.rmse, floor_of(cur), gap_before, excess, hidden_nominal, allowance, st):
-        return cur, records
-    while len(cur.names) > 1:
-        weakest = None
-        for i, k in enumerate(cur.names):
-            red = fitter.fit([n for n in cur.names if n != k], np.delete(cur.coef, i), np.delete(cur.std, i),
-                             st.refine_max_nfev)
-            fl = floor_of(red)
-            at_floor = closes_gap(red.rmse, fl, gap_before, excess, hidden_nominal, 0.0, st)
-            gain = residual_gain(red, k)
-            size = fitter.effect_size(cur, k)
-            reenters = gain >= st.bic_min_improvement and size >= math.hypot(fl, st.min_gap_rad)
-            dbic = trajectory_delta_bic(red, cur)
-            rec = {"effect": k, "model": list(cur.names), "rmse_without": red.rmse, "floor_without": fl,
-                   "remaining_excess_without": math.sqrt(max(red.rmse**2 - fl**2, 0.0)),
-                   "closes_without": closes_gap(red.rmse, fl, gap_before, excess, hidden_nominal, allowance,
-                                                st),
-                   "at_floor_without": at_floor, "residual_bic_gain": gain, "effect_size_rad": size,
-                   "re_enters": reenters, "trajectory_delta_bic": dbic, "dropped": False}
-            records.append(rec)
-            log.info("pruning %s from %s: RMSE without %.4f (floor %.4f), at floor %s, re-enters %s", k,
-                     cur.names, red.rmse, fl, at_floor, reenters)
-            if at_floor and not reenters and (weakest is None or dbic < weakest[0]):
-                weakest = (dbic, red, rec)
-        if weakest is None:
-            break
-        weakest[2]["dropped"] = True
-        cur = weakest[1]
-    return cur, records
+        return cur, []
+
+    def judge(cur: TrajectoryFit, k: str, red: TrajectoryFit, dbic: float) -> tuple[dict[str, Any], bool]:
+        fl = floor_of(red)
+        at_floor = closes_gap(red.rmse, fl, gap_before, excess, hidden_nominal, 0.0, st)
+        gain = residual_gain(red, k)
+        size = fitter.effect_size(cur, k)
+        reenters = gain >= st.bic_min_improvement and size >= math.hypot(fl, st.min_gap_rad)
+        log.info("pruning %s from %s: RMSE without %.4f (floor %.4f), at floor %s, re-enters %s", k,
+                 cur.names, red.rmse, fl, at_floor, reenters)
+        closes = closes_gap(red.rmse, fl, gap_before, excess, hidden_nominal, allowance, st)
+        return ({"effect": k, "model": list(cur.names), "rmse_without": red.rmse, "floor_without": fl,
+                 "remaining_excess_without": math.sqrt(max(red.rmse**2 - fl**2, 0.0)),
+                 "closes_without": closes,
+                 "at_floor_without": at_floor, "residual_bic_gain": gain, "effect_size_rad": size,
+                 "re_enters": reenters, "trajectory_delta_bic": dbic}, at_floor and not reenters)
+
+    return drop_weakest(fitter, cur, judge, st)
+

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -58,30 +59,48 @@ def eliminate(fitter: TrajectoryFitter, cur: TrajectoryFit, keep: str, gap_befor
     weakest failing effect is dropped first and the test repeated. An effect that entered early
     as a proxy for two true ones (a rest curvature for a tip mass plus drag) leaves once both
     are named. ``keep`` (the effect that just entered) is not tested again."""
+    def judge(cur: TrajectoryFit, k: str, red: TrajectoryFit, dbic: float) -> tuple[dict[str, Any], bool]:
+        size = fitter.effect_size(cur, k)
+        stays = dbic >= st.bic_min_improvement and size >= st.min_effect_fraction * gap_before
+        log.info("elimination %s from %s: delta BIC %.1f, size %.4f, stays %s", k, cur.names, dbic, size,
+                 stays)
+        return {"effect": k, "model": list(cur.names), "trajectory_delta_bic": dbic, "effect_size_rad": size,
+                "rmse_without": red.rmse}, not stays
+
+    return drop_weakest(fitter, cur, judge, st, keep)
+
+
+Judge = Callable[[TrajectoryFit, str, TrajectoryFit, float], tuple[dict[str, Any], bool]]
+
+
+def drop_weakest(fitter: TrajectoryFitter, cur: TrajectoryFit, judge: Judge, st: DiscoverySettings,
+                 keep: str | None = None) -> tuple[TrajectoryFit, list[dict[str, Any]]]:
+    """Drop named effects one at a time, weakest first, while ``judge`` lets one go.
+
+    Each effect of ``cur`` but ``keep`` is refitted out (remaining coefficients and the initial
+    state free, ``refine_max_nfev``); ``judge(cur, k, reduced, delta_bic)`` returns the record of
+    that test and whether k may leave; of those that may, the one of smallest trajectory BIC
+    contribution (``trajectory_delta_bic``) is dropped (its record marked ``dropped``) and the
+    tests repeated on the smaller model. Backward elimination (``eliminate``) and the pruning to
+    the smallest model at its floor (``prune.smallest_model``) differ only in their judge."""
     records: list[dict[str, Any]] = []
     while len(cur.names) > 1:
-        worst = None
-        for k in cur.names:
+        weakest = None
+        for i, k in enumerate(cur.names):
             if k == keep:
                 continue
-            i = cur.names.index(k)
-            size = fitter.effect_size(cur, k)
             red = fitter.fit([n for n in cur.names if n != k], np.delete(cur.coef, i), np.delete(cur.std, i),
                              st.refine_max_nfev)
             dbic = trajectory_delta_bic(red, cur)
-            stays = dbic >= st.bic_min_improvement and size >= st.min_effect_fraction * gap_before
-            rec = {"effect": k, "model": list(cur.names), "trajectory_delta_bic": dbic,
-                   "effect_size_rad": size,
-                   "rmse_without": red.rmse, "dropped": False}
+            rec, may_drop = judge(cur, k, red, dbic)
+            rec["dropped"] = False
             records.append(rec)
-            log.info("elimination %s from %s: delta BIC %.1f, size %.4f, stays %s", k, cur.names, dbic, size,
-                     stays)
-            if not stays and (worst is None or dbic < worst[0]):
-                worst = (dbic, red, rec)
-        if worst is None:
+            if may_drop and (weakest is None or dbic < weakest[0]):
+                weakest = (dbic, red, rec)
+        if weakest is None:
             break
-        worst[2]["dropped"] = True
-        cur = worst[1]
+        weakest[2]["dropped"] = True
+        cur = weakest[1]
     return cur, records
 
 
