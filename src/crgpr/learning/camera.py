@@ -27,7 +27,16 @@ are trained exactly as from the simulator's full state:
   (smoothed) values and its rates are zero (with ``gp`` the fitted clamp angle is already one
   constant);
 * frames within ``edge_trim_s`` of either end of the record are dropped (GP derivatives are
-  least certain there), then at most ``n_t_out`` evenly spaced frames are kept.
+  least certain there), then at most ``n_t_out`` evenly spaced frames are kept;
+* the bending law's moment targets smoothed as the curvatures are (``camera.learn.
+  bending_targets: smoothed``; ``gp`` only): the clamped fit rebuilds the curvatures as
+  kappa_hat = L kappa (``kinematics.curvature_operator``), a linear map that is far from the
+  identity near the clamp, where the curvature's profile is not the penalty's; pairing kappa_hat
+  with the moments m would teach the law the smoothing (on the paper's rod, a law 3 % too soft
+  at 40 /m). The arrays carry L (``KAPPA_OPERATOR``) and ``gradient_models.training_data``
+  pairs kappa_hat with L m, so a linear law is learned exactly whatever the smoothing (errors
+  in variables of the reconstruction, not of the noise); for a nonlinear law L m differs from
+  m(L kappa) at second order.
 
 Nothing here assumes the data came from our simulator: with a ``node`` column the node grid is
 the camera's (N = measured segments, s_i = i L0 / N); with an ``s`` column (markers anywhere,
@@ -41,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crgpr.learning.gradient_models import KAPPA_OPERATOR
 from crgpr.learning.prefilter import fd_time_derivatives, output_indices, spatial_derivatives
 from crgpr.measured.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
 from crgpr.measured.records import Measured, MeasuredDataError
@@ -59,12 +69,13 @@ class LearnSettings:
     angle_penalty_order: int
     edge_trim_s: float
     n_t_out: int
+    bending_targets: str
 
     @classmethod
     def from_config(cls, c: dict) -> LearnSettings:
         return cls(gp_max_points=int(c["gp_max_points"]), hyper_points=int(c["hyper_points"]),
                    angle_penalty_order=int(c["angle_penalty_order"]), edge_trim_s=float(c["edge_trim_s"]),
-                   n_t_out=int(c["n_t_out"]))
+                   n_t_out=int(c["n_t_out"]), bending_targets=str(c["bending_targets"]))
 
 
 def check_node_grid(meas: Measured, params: RodParams, why: str = "crgpr learn") -> None:
@@ -125,7 +136,8 @@ def clamp_base(kin: Kinematics) -> Kinematics:
     q[:, 0, :] = q[:, 0, :].mean(axis=0)
     v[:, 0, :] = 0.0
     a[:, 0, :] = 0.0
-    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers, kin.kappa_noise)
+    return Kinematics(kin.t, q, v, a, kin.noise_std_m, kin.base_segment_angle, kin.s_markers, kin.kappa_noise,
+                      kin.kappa_operator)
 
 
 def kept_frames(t: np.ndarray, edge_trim_s: float, n_out: int) -> np.ndarray:
@@ -172,6 +184,8 @@ def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: Le
     arr = state_arrays(kin, params, idx)
     if not all(np.all(np.isfinite(v)) for v in arr.values()):
         raise ValueError(f"{meas.source}: the derived state has non-finite values")
+    if st.bending_targets == "smoothed" and kin.kappa_operator is not None:
+        arr[KAPPA_OPERATOR] = kin.kappa_operator
     report = {"prefilter": prefilter, "n_frames": int(meas.t.size), "n_frames_used": int(idx.size),
               "rate_hz": meas.rate_hz, "n_nodes": int(params.N + 1), "markers": meas.summary(),
               "noise_std_m_estimated": None if np.isnan(kin.noise_std_m) else float(kin.noise_std_m),

@@ -157,6 +157,9 @@ def inner_segments(n_segments: int, trim_ends: int) -> np.ndarray:
     return keep
 
 
+KAPPA_OPERATOR = "kappa_operator"  # key of the arrays: L (N, N), rebuilt curvature = L true curvature
+
+
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
                   center: float | None, segments: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """All (X, y) samples of one model from the prefilter arrays (before subsampling).
@@ -164,7 +167,10 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
     ``segments``: a boolean mask over the N segments (nodes) of a constitutive model, the ones
     kept (camera data, ``crgpr learn``: the ends, whose angles derived from positions are
     extrapolations (``inner_segments``), or the segments whose curvature the positions do not
-    resolve are left out); the momentum models keep every node.
+    resolve are left out); the momentum models keep every node. Where the arrays carry the
+    curvature reconstruction's operator L (``KAPPA_OPERATOR``, camera data:
+    ``learning.camera``), the bending moments of ``obj_m`` are L m per frame, smoothed along the
+    rod as its rebuilt curvatures are.
     """
     x, y, th = arr["x"], arr["y"], arr["theta"]
     ds = params.ds
@@ -189,6 +195,8 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
         else:
             c = sg["nu1"] * n2 - sg["nu2"] * n1
             tgt = ft.moments_from_htheta(hz[..., 2], c, params)
+            if KAPPA_OPERATOR in arr:
+                tgt = tgt @ np.asarray(arr[KAPPA_OPERATOR]).T
     if segments is not None and name not in MOMENTUM_MODELS:
         X, tgt = X[:, segments], tgt[:, segments]
     return X.reshape(-1, X.shape[-1]), tgt.reshape(-1)

@@ -50,6 +50,7 @@ class Kinematics:
     base_segment_angle: np.ndarray  # phi_0(t) [rad]
     s_markers: np.ndarray  # marker arc lengths [m] (the comparison points)
     kappa_noise: np.ndarray | None = None  # clamped fit: noise sd of each segment's curvature [1/m]
+    kappa_operator: np.ndarray | None = None  # clamped fit: L (N, N), rebuilt curvature = L true curvature
 
 
 def segment_angles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -196,6 +197,23 @@ def clamped_angle_fit(W: np.ndarray, psi_frames: np.ndarray, psi_all: np.ndarray
     return S, h, c, lam, sigma_psi * np.sqrt(np.sum(Dk**2, axis=1))
 
 
+def curvature_operator(S: np.ndarray, W: np.ndarray, ds: float) -> np.ndarray:
+    """L (N, N): the clamped angle fit's rebuilt segment curvatures as a linear map of the true
+    ones, kappa_hat = L kappa (for the fit's own clamp angle; ``clamped_angle_fit``).
+
+    Nodal angles theta = c + C kappa (C the cumulative sum times ds, theta_0 = c), mid-segment
+    angles A theta, chord angles W A theta; the fit returns theta_1..N = S psi - h c, and the
+    constant c passes through exactly (S W A 1 - h = 1), so kappa_hat = D [0; S W A C] kappa / ds
+    with D the first difference. Where the curvature's profile is not the penalty's (near the
+    clamp) L is far from the identity: row 0 spreads the clamp segment's curvature over the next
+    three segments on a 1 mm camera record."""
+    n_seg = W.shape[1]
+    A = 0.5 * (np.eye(n_seg, n_seg + 1) + np.eye(n_seg, n_seg + 1, 1))
+    C = np.vstack([np.zeros((1, n_seg)), np.tril(np.ones((n_seg, n_seg)))]) * ds
+    theta = np.vstack([np.zeros((1, n_seg)), S @ W @ A @ C])
+    return np.diff(theta, axis=0) / ds
+
+
 def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, max_points: int,
                  hyper_points: int, n_restarts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """GP smoothing of every column of A (NaN = missing) with shared hyperparameters."""
@@ -271,6 +289,7 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
     if clamp_order is not None:
         S, h, c, _, dth_sd = clamped_angle_fit(W, psi[rows], psi, clamp_order)
         kappa_noise = dth_sd / params.ds
+        kappa_operator = curvature_operator(S, W, params.ds)
         zero_t = np.zeros((n_t, 1))
         th = np.c_[zero_t + c, psi @ S.T - c * h]
         dth, ddth = np.c_[zero_t, dpsi @ S.T], np.c_[zero_t, ddpsi @ S.T]
@@ -279,7 +298,7 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
         S, _ = spatial_operator(W, psi[rows])
         phi, dphi, ddphi = psi @ S.T, dpsi @ S.T, ddpsi @ S.T
         th, dth, ddth = node_angles(phi), node_angles(dphi), node_angles(ddphi)
-        kappa_noise = None
+        kappa_noise = kappa_operator = None
     seg = params.ds * params.nu1_0
     c, s = np.cos(phi), np.sin(phi)
     zero = np.zeros((n_t, params.N + 1))
@@ -306,7 +325,7 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
     q = np.stack([qx, qy, th], axis=-1)
     v = np.stack([vxm, vym, dth], axis=-1)
     a = np.stack([axm, aym, ddth], axis=-1)
-    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi[:, 0].copy(), s_m.copy(), kappa_noise)
+    return Kinematics(t, q, v, a, 0.5 * (nx + ny), phi[:, 0].copy(), s_m.copy(), kappa_noise, kappa_operator)
 
 
 def marker_positions(q: np.ndarray, s_markers: np.ndarray, params: RodParams) -> np.ndarray:
