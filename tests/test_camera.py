@@ -287,7 +287,7 @@ def test_the_rebuilt_curvature_is_the_curvature_operator_applied_to_the_true_one
     """Any curvature field of an unsheared rod, markers anywhere along it (no base marker): the
     clamped fit's rebuilt curvatures, with the clamp angle the rod's, are exactly L kappa
     (``kinematics.curvature_operator``), whatever lam GCV picks and however far L is from the
-    identity."""
+    identity (to round-off)."""
     from crgpr.measured.kinematics import chord_operator, clamped_angle_fit, curvature_operator
 
     rng = np.random.default_rng(seed)
@@ -301,7 +301,10 @@ def test_the_rebuilt_curvature_is_the_curvature_operator_applied_to_the_true_one
     S, h, _, _, _ = clamped_angle_fit(W, psi, psi, order)
     clean = (0.5 * (theta[:, 1:] + theta[:, :-1])) @ W.T
     rebuilt = np.diff(np.concatenate([np.full((8, 1), c), clean @ S.T - c * h], axis=1), axis=1) / P.ds
-    np.testing.assert_allclose(rebuilt, kappa @ curvature_operator(S, W, P.ds).T, rtol=1e-7, atol=1e-7)
+    # exact in exact arithmetic; few markers on many segments make S ill-conditioned (round-off
+    # of the nodal angles over ds: ~1e-6 of the curvatures' scale at 6 markers, 21 segments)
+    np.testing.assert_allclose(rebuilt, kappa @ curvature_operator(S, W, P.ds).T, rtol=0,
+                               atol=1e-5 * np.abs(kappa).max())
 
 
 def test_smoothed_moment_targets_pair_a_linear_law_with_the_rebuilt_curvature(sim):
