@@ -3,7 +3,8 @@
 Makes the camera record of a ground-truth file exactly as rule ``camera_data`` does (the
 config's frame rate and seed), rebuilds the state with ``learning.camera.positions_to_state``
 (config ``camera.learn``; ``--order`` overrides ``angle_penalty_order``, ``none`` runs the
-unclamped smoother of the discovery workflow, without the clamp-angle penalty) and prints the
+unclamped smoother of the discovery workflow, without the clamp-angle penalty; ``--lam-factor``
+fixes the smoothing weight instead of GCV) and prints the
 clamp-angle error, per segment the least-squares slope of the rebuilt curvature against the
 simulator's (through the origin), its rms error and the fit's own noise estimate.
 
@@ -33,12 +34,18 @@ def main() -> None:
     ap.add_argument("ground_truth")
     ap.add_argument("--noise-mm", type=float, default=1.0)
     ap.add_argument("--order", default=None, help="2, 3, 4 or none (default: the config's)")
+    ap.add_argument("--lam-factor", type=float, default=None,
+                    help="fix the clamped fit's smoothing weight at this x its scale instead of GCV")
     ap.add_argument("--config", default=str(Path(__file__).resolve().parents[1] / "config.yaml"))
     a = ap.parse_args()
     cfg = load_config(a.config)
     st = camera.LearnSettings.from_config(cfg["camera"]["learn"])
     if a.order not in (None, "none"):
         st = camera.LearnSettings(**{**st.__dict__, "angle_penalty_order": int(a.order)})
+    if a.lam_factor is not None:  # a fixed smoothing weight: the bias at that weight, without GCV
+        from crgpr.measured import kinematics as kin
+
+        kin._gcv_lambda = lambda scale, fit: a.lam_factor * scale
     if a.order == "none":  # the unclamped smoother (segment angles, ends extrapolated)
         camera.gp_kinematics = lambda meas, params, s, seed: smooth_kinematics(
             meas, params, seed=seed, max_points=s.gp_max_points, hyper_points=s.hyper_points)
