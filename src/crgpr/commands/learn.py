@@ -69,6 +69,8 @@ from crgpr.learning.nominal import (
     segment_curvature_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
+from crgpr.learning.record_fit import RecordFit, fit_record
+from crgpr.learning.warp import BendingWarp, Warp, manifest_warp
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
@@ -282,7 +284,15 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if damping is not None and damping.kept:
         rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
-    laws = law_outputs(out, trained, params, cam["law_table"], seed)
+    fit = None
+    if kind == "positions" and features == "objective" and cam["record_fit"]["mode"] == "auto":
+        center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
+        kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
+        fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
+                          float(np.max(np.abs(kappa - center))),
+                          0.0 if damping is None else damping.coefficient)
+    laws = law_outputs(out, trained, params, cam["law_table"], seed,
+                       None if fit is None else manifest_warp(fit.to_dict()))
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -293,6 +303,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_symmetry": sym if features == "objective" else None,
                 "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,
                 "bending_damping": None if damping is None else damping.to_dict(),
+                "record_fit": None if fit is None else fit.to_dict(),
                 "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
@@ -309,22 +320,43 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
     training record (``learning.damping.record_rmse_theta``)."""
     man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
     comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
-    sim = cfg["simulation"]  # the step, record interval and scheme; the length is the record's
-    st = checked_step(SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
-                                  record_every=int(sim["record_every"]), scheme=str(sim["scheme"])), params)
-    return record_rmse_theta(comps, features, params, center, st, arr, inputs, ports)
+    return record_rmse_theta(comps, features, params, center, _record_settings(cfg, arr, params), arr,
+                             inputs, ports)
 
 
-def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int
-                ) -> dict[str, Any]:
+def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
+                nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
+                center: float, kappa_scale: float, damping: float) -> RecordFit:
+    """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (bending
+    damping c kept fixed) on the derived training record ``arr``."""
+    man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
+    comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
+
+    def law_rod(W: np.ndarray) -> LearnedRod:
+        return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W)},
+                          "objective", params, None, damping)
+    return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
+                      cfg["camera"]["learn"]["record_fit"], inputs, ports)
+
+
+def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:
+    """The config's step, record interval and scheme over the training record's length."""
+    sim = cfg["simulation"]
+    return checked_step(SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
+                                    record_every=int(sim["record_every"]), scheme=str(sim["scheme"])), params)
+
+
+def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
+                warp: Warp | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
-    (``report.laws``) in the model directory; returns the manifest's entries (the covered range
-    of every learned model's inputs, the file names)."""
+    (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
+    where it has one; returns the manifest's entries (the covered range of every learned
+    model's inputs, the file names)."""
     from crgpr.report.laws import law_figure
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
-    tab = law_tables(out, trained, params, settings, seed)
+    tab = law_tables(out, trained, params, settings, seed, warp)
     if tab.empty:
         return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
     write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
@@ -363,7 +395,8 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
     """The components of a model directory's learned rod and its theta window: each learned model
     as ``load(name)`` gives it (the rollout's evaluator, or its posterior samples for the UQ
     rollout), seen through ``SelectedInputs`` where it was fitted on some feature columns, and
-    the laws taken from the nominal rod (``nominal_laws``, grey box). One assembly for the mean
+    the laws taken from the nominal rod (``nominal_laws``, grey box); the bending law times its
+    record-fit warp where the manifest keeps one (``learning.record_fit``). One assembly for the mean
     and the sampled rod."""
     params = RodParams.from_dict(man["rod"])
     comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
@@ -376,6 +409,9 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
         comps[m] = comp if cols is None else SelectedInputs(comp, cols, s_mid)
         if m in ("q_x", "dH_dtheta"):
             center = meta.get("theta_center")
+    warp = manifest_warp(man.get("record_fit"))
+    if warp is not None:
+        comps["obj_m"] = BendingWarp(comps["obj_m"], *warp)
     return comps, (center if man["features"] == "paper" else None)
 
 

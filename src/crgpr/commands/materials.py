@@ -29,6 +29,7 @@ from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.law_tables import bending_law_at_segments
 from crgpr.learning.learned import frozen_after_divergence, rollout_members
+from crgpr.learning.warp import manifest_warp
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import segment_moment_law, straight_rod, strains
 from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame, trajectory_from_frame
@@ -91,7 +92,8 @@ def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str
 def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_table: dict[str, Any],
                seed: int) -> dict[str, float]:
     """``report.metrics.law_accuracy`` of a model directory's bending law (learned, or the nominal
-    one where the data chose it; ``learning.law_tables.bending_law_at_segments``, each segment at
+    one where the data chose it, times its record-fit warp where kept;
+    ``learning.law_tables.bending_law_at_segments``, each segment at
     its own s where the law takes s) against the true law of every segment at its own s
     (``rod.segment_moment_law``), each segment compared where its curvature went in the training
     record ``train`` (``law_table``: the config's ``camera.learn.law_table``, its sd settings)."""
@@ -100,7 +102,8 @@ def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_t
     x = np.linspace(float(kappa.min()), float(kappa.max()), int(law_table["n_grid"]))
     where = (x[:, None] >= kappa.min(axis=0)[None, :]) & (x[:, None] <= kappa.max(axis=0)[None, :])
     mean, sd = bending_law_at_segments(model_dir, list(man["models"]), RodParams.from_dict(man["rod"]), x,
-                                       int(law_table["max_points"]), seed, int(law_table["band_blocks"]))
+                                       int(law_table["max_points"]), seed, int(law_table["band_blocks"]),
+                                       manifest_warp(man.get("record_fit")))
     return law_accuracy(mean, sd, segment_moment_law(truth, x), where)
 
 

@@ -106,7 +106,11 @@ def objective_n_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float
 
 def objective_m_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> np.ndarray:
     """m inputs per segment (..., N, 5): [kappa_j, kappa_{j-1}, kappa_{j+1}, nu1_j, nu2_j]."""
-    sg = segments(x, y, th, ds)
+    return segment_m_features(segments(x, y, th, ds))
+
+
+def segment_m_features(sg: dict[str, np.ndarray]) -> np.ndarray:
+    """``objective_m_features`` from the ``segments`` quantities already at hand."""
     k = sg["kappa"]
     km1 = np.concatenate([k[..., :1], k[..., :-1]], axis=-1)
     kp1 = np.concatenate([k[..., 1:], np.zeros_like(k[..., :1])], axis=-1)

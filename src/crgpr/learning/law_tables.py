@@ -38,6 +38,7 @@ import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
 from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
+from crgpr.learning.warp import Warp, warp_factor
 from crgpr.physics.params import RodParams
 
 LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
@@ -80,9 +81,11 @@ def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
-              max_points: int, seed: int, s_points: int, band_blocks: int) -> pd.DataFrame:
+              max_points: int, seed: int, s_points: int, band_blocks: int, warp: Warp | None = None
+              ) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
-    covered_lo, covered_hi, sd_points, sd_scale, at_s."""
+    covered_lo, covered_hi, sd_points, sd_scale, at_s. ``warp``: the bending law's record-fit warp
+    (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd."""
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
@@ -101,8 +104,9 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
                 X[:, js] = sv
             X[:, j] = g
             _, var = sd_gp.predict(X, return_var=True)
-            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X),
-                                      "sd": np.sqrt(np.asarray(var, dtype=float).ravel()),
+            w = 1.0 if warp is None else warp_factor(X[:, features.index("kappa")], *warp)
+            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X) * w,
+                                      "sd": np.sqrt(np.asarray(var, dtype=float).ravel()) * np.abs(w),
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                                       "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
@@ -111,33 +115,38 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
 
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
-               seed: int) -> pd.DataFrame:
+               seed: int, warp: Warp | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
-    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks)."""
+    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``: the
+    bending law's record-fit warp, ``law_table``)."""
     out = []
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
                              float(settings["pad"]), int(settings["max_points"]), seed,
-                             int(settings["s_points"]), int(settings["band_blocks"])))
+                             int(settings["s_points"]), int(settings["band_blocks"]),
+                             warp if name == "obj_m" else None))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
 
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
-                            max_points: int, seed: int, band_blocks: int) -> tuple[np.ndarray, np.ndarray]:
+                            max_points: int, seed: int, band_blocks: int, warp: Warp | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
     (inputs other than kappa and s at their training medians); a nominal one (not in
-    ``trained``): EI (kappa - kappa0) of ``params`` with sd 0."""
+    ``trained``): EI (kappa - kappa0) of ``params`` with sd 0. Either times the record-fit
+    ``warp`` where the model has one (``learning.record_fit``)."""
     from crgpr.learning.features import segment_arclength
 
     kappa = np.asarray(kappa, dtype=float).ravel()
     N = params.N
+    w = np.ones((kappa.size, 1)) if warp is None else warp_factor(kappa, *warp)[:, None]
     if "obj_m" not in trained:
         m = params.EI * (kappa - params.kappa0)
-        return np.repeat(m[:, None], N, axis=1), np.zeros((kappa.size, N))
+        return np.repeat(m[:, None], N, axis=1) * w, np.zeros((kappa.size, N))
     stem = Path(model_dir) / "obj_m"
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
@@ -155,4 +164,4 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:] = mean[:, [j]], sd[:, [j]]
             break
-    return mean, sd
+    return mean * w, sd * np.abs(w)

@@ -51,6 +51,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
+from crgpr.learning.nominal import NominalLaw
 from crgpr.physics.dissipation import bending_power, kelvin_voigt_propagator
 from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
 from crgpr.physics.params import RodParams, SimSettings
@@ -103,6 +104,9 @@ class LearnedRod:
         self.center = theta_center
         self.wds = node_weights(params.N) * params.ds
         self.hp = [self.components[m] for m in MOMENTUM_MODELS]
+        # the nominal momentum maps H_p = p / (rho A), p / (rho I) (camera models): one product
+        self.inv_mass = (np.array([h.stiffness for h in self.hp])
+                         if all(isinstance(h, NominalLaw) for h in self.hp) else None)
         self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
         if not (math.isfinite(damping) and damping >= 0):
             raise ValueError(f"learned bending damping c = {damping!r}: must be finite and >= 0")
@@ -142,7 +146,7 @@ class LearnedRod:
             sg = ft.segments(x, y, th, P.ds)
             Xn = np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
             n1, n2 = c["obj_n1"](Xn), c["obj_n2"](Xn)
-            m = c["obj_m"](ft.objective_m_features(x, y, th, P.ds))
+            m = c["obj_m"](ft.segment_m_features(sg))
             cs, sn = sg["cos"], sg["sin"]
             out[..., 0] = ft.forces_from_q(n1 * cs - n2 * sn, P)
             out[..., 1] = ft.forces_from_q(n1 * sn + n2 * cs, P)
@@ -153,12 +157,16 @@ class LearnedRod:
         return self.internal(q) + self.gu
 
     def velocity(self, p: np.ndarray) -> np.ndarray:
+        if self.inv_mass is not None:
+            return self.inv_mass * np.asarray(p, dtype=float)
         out = np.empty(p.shape)
         for k in range(3):
             out[..., k] = self.hp[k](p[..., k])
         return out
 
     def velocity_slope(self, p: np.ndarray) -> np.ndarray:
+        if self.inv_mass is not None:
+            return np.broadcast_to(self.inv_mass, p.shape)
         out = np.empty(p.shape)
         for k in range(3):
             out[..., k] = self.hp[k].slope(p[..., k])
@@ -198,14 +206,15 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
     ``inputs`` drive the ``ports`` (G(z) u of ``physics.ports``, the simulator's G, added to the
     model's gravity per unit length at every step time); their work is ``input_work``.
     ``initial`` = (q0, p0, t0): start from that state (p per length) at time t0 [s] instead of
-    the straight rod at rest (the inputs are then read from t0 on, and t starts at t0).
+    the straight rod at rest (the inputs are then read from t0 on, and t starts at t0); with
+    ``n_batch``, q0 and p0 may carry the batch axis (one start per rod).
     """
     P = model.params
     if initial is None:
         q0, p0, t0 = straight_rod(math.radians(theta0_deg), P), None, 0.0
     else:
         q0, p0, t0 = np.array(initial[0], dtype=float), np.array(initial[1], dtype=float), float(initial[2])
-    if n_batch is not None:
+    if n_batch is not None and q0.ndim == 2:
         q0 = np.repeat(q0[None], n_batch, axis=0)
         p0 = None if p0 is None else np.repeat(p0[None], n_batch, axis=0)
     port = None

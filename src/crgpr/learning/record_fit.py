@@ -1,0 +1,214 @@
+"""The learned rod fitted to its own training record by output error: the record's initial state
+and a smooth correction of the bending law, jointly (errors in variables).
+
+From positions (camera data) the bending law m(kappa) is learned by regressing the moment targets
+of eq. (13) on the curvatures of the same smoothing fit (equation error). Both sides come from
+one fit of noisy marker positions, and that fit's bias (near the clamp and at the largest
+curvatures, docs/learned-laws.md) is not noise that more samples average out: the regression
+inherits it, and a law off by a few per cent shifts every rollout's phase. An output-error fit
+does not inherit it: the learned rod (eq. (17)) is integrated over the whole record and its
+angles are compared with the record's, so the law is judged by the motion it produces.
+
+Parameters (``RecordFit``):
+
+* the bending law's warp: m(kappa) <- m(kappa) w(kappa), w = 1 + sum_{k < K} a_k u^(2k),
+  u = (kappa - c) / kappa_s clipped to [-1, 1]; c the law's centre (the point it is mirrored
+  about, else the nominal kappa0), kappa_s the largest |kappa - c| of its training samples. Even
+  in u, so the law keeps its symmetry about c; multiplicative, so m(c) = 0 is kept; constant
+  beyond the covered range, where the record says nothing of it (``BendingWarp``);
+* the record's initial state: the derived angles theta_0(s) and rates omega_0(s) at its first
+  kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero at the clamp); positions and
+  velocities are rebuilt from them at the nominal strains nu^0 from the clamped base
+  (``start_state``). The derived positions' strain noise would otherwise start stretch and shear
+  oscillations that the record does not have, and the derived rates are least certain at the
+  record's start, where its time derivatives are end-affected.
+
+Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
+at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
+(``learned.rollout``). Decision from the data (``decide``): the start alone and the start with
+the warp are fitted on the first 1 - f of the record and compared on its last f, cut into
+``blocks`` contiguous blocks (``laws.consistent_gain``: the warp is kept only where it forecasts
+the held-out blocks consistently better); a kept warp is then refitted on the whole record.
+Otherwise the law stays as the regression learned it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
+from crgpr.learning.learned import LearnedRod, rollout
+from crgpr.physics.integrator import SimulationDiverged
+from crgpr.physics.params import RodParams, SimSettings
+from crgpr.physics.ports import Ports
+from crgpr.physics.signals import Inputs
+
+MODES: tuple[str, ...] = ("auto", "none")
+FD_STEP = 1e-3  # forward-difference step of every parameter (warp: relative stiffness; start: rad, rad/s)
+
+
+@dataclass(frozen=True)
+class RecordFit:
+    """What ``fit_record`` decided (the manifest's ``record_fit``): the warp's centre, scale and
+    coefficients (all zero where it was not kept), the start's mode coefficients, the RMSE of
+    theta over the record [rad] as learned (from the derived start), with the fitted start alone
+    and after the fit, the held-out comparison (mean and se of the per-block log error ratio,
+    start alone over start and warp) and the fit's wall time [s]."""
+
+    kept: bool
+    center: float
+    kappa_scale: float
+    coefficients: list[float]
+    start_coefficients: list[float]
+    rmse_learned: float
+    rmse_start_only: float
+    rmse_fitted: float
+    heldout_log_ratio: float
+    heldout_log_ratio_se: float
+    note: str
+    seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def start_state(arr: dict[str, np.ndarray], params: RodParams, b: np.ndarray, modes: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Initial states (B, N+1, 3) q and p (per length) from the first frame of the derived record
+    ``arr`` with the corrections b (B, 2 J): theta_0 + sum_j b_j (s/L)^j, omega_0 + sum_j
+    b_{J+j} (s/L)^j; x, y and the linear momenta rebuilt from the clamped base at the nominal
+    strains (nu1^0, nu2^0) along the mid-segment angle (``features.segments``)."""
+    P = params
+    b = np.atleast_2d(np.asarray(b, dtype=float))
+    s = np.linspace(0.0, 1.0, P.N + 1)
+    phi = np.stack([s ** (j + 1) for j in range(modes)]) if modes else np.zeros((0, P.N + 1))
+    th = arr["theta"][0][None] + b[:, :modes] @ phi
+    om = arr["p_theta"][0][None] / P.rhoI + b[:, modes:2 * modes] @ phi
+    om[:, 0] = 0.0
+    tb, ob = 0.5 * (th[:, 1:] + th[:, :-1]), 0.5 * (om[:, 1:] + om[:, :-1])
+    c, sn = np.cos(tb), np.sin(tb)
+    ex, ey = P.nu1_0 * c - P.nu2_0 * sn, P.nu1_0 * sn + P.nu2_0 * c  # tangent of the rest strains
+    z = np.zeros((b.shape[0], 1))
+
+    def cum(v: np.ndarray) -> np.ndarray:
+        return np.concatenate([z, np.cumsum(P.ds * v, axis=1)], axis=1)
+    q = np.stack([arr["x"][0][0] + cum(ex), arr["y"][0][0] + cum(ey), th], axis=-1)
+    p = np.stack([P.rhoA * cum(-ey * ob), P.rhoA * cum(ex * ob), P.rhoI * om], axis=-1)
+    return q, p
+
+
+def record_residuals(model_for: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.ndarray],
+                     params: RodParams, settings: SimSettings, modes: int, n_frames: int,
+                     inputs: Inputs | None = None, ports: Ports | None = None
+                     ) -> Callable[[np.ndarray], np.ndarray | None]:
+    """A -> residuals (B, n_frames x N) of theta at the free nodes over the record's first
+    ``n_frames`` frames, for parameter rows A (B, 2 J + K): start corrections then warp
+    coefficients (``model_for(A[:, 2J:])``: the learned rod of those warps); None where any rod
+    of the batch leaves the physical range."""
+    t, theta = arr["t"][:n_frames], arr["theta"][:n_frames, 1:]
+    st = replace(settings, t_end=float(t[-1] - t[0]),
+                 record_every=max(1, int(round(float(np.min(np.diff(arr["t"]))) / settings.dt))))
+
+    def residuals(A: np.ndarray) -> np.ndarray | None:
+        q0, p0 = start_state(arr, params, A[:, :2 * modes], modes)
+        try:
+            tr = rollout(model_for(A[:, 2 * modes:]), math.nan, st, "record fit", n_batch=A.shape[0],
+                         inputs=inputs, ports=ports, initial=(q0, p0, float(t[0])))
+        except SimulationDiverged:
+            return None
+        out = np.empty((A.shape[0], t.size, theta.shape[1]))
+        for i in range(theta.shape[1]):
+            for r in range(A.shape[0]):
+                out[r, :, i] = np.interp(t, tr.t, tr.q[:, r, i + 1, 2])
+        return (out - theta[None]).reshape(A.shape[0], -1)
+    return residuals
+
+
+def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray,
+                        free: np.ndarray, iterations: int) -> tuple[np.ndarray, float]:
+    """Minimise mean(r^2) over the parameters where ``free`` (bool, like a0), the others held at
+    a0: Levenberg-Marquardt with forward-difference Jacobians, each evaluation (a point and its
+    perturbations) one call of ``residuals``. Returns (parameters, RMS residual); the start's
+    RMS is inf where the first evaluation diverges."""
+    idx = np.flatnonzero(free)
+
+    def evaluate(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        A = np.repeat(a[None], idx.size + 1, axis=0)
+        A[1 + np.arange(idx.size), idx] += FD_STEP
+        R = residuals(A)
+        return None if R is None else (R[0], ((R[1:] - R[0]) / FD_STEP).T)
+    a = np.asarray(a0, dtype=float).copy()
+    ev = evaluate(a)
+    if ev is None:
+        return a, math.inf
+    r, J = ev
+    cost, lam = float(np.mean(r**2)), 1e-3
+    for _ in range(iterations):
+        JTJ, g = J.T @ J, J.T @ r
+        for _ in range(4):
+            step = np.linalg.solve(JTJ + lam * np.diag(np.diag(JTJ) + 1e-12), -g)
+            trial = a.copy()
+            trial[idx] += step
+            ev = evaluate(trial)
+            if ev is not None and float(np.mean(ev[0] ** 2)) < cost:
+                break
+            lam *= 10.0
+        else:
+            break
+        gain = cost - float(np.mean(ev[0] ** 2))
+        a, (r, J), cost, lam = trial, ev, float(np.mean(ev[0] ** 2)), lam / 3.0
+        if gain < 1e-4 * cost:
+            break
+    return a, math.sqrt(cost)
+
+
+def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float, float, bool]:
+    """Held-out forecast comparison: per-block squared errors of the start-only and the warped
+    fits over the record's last part (``blocks`` contiguous blocks) -> ``consistent_gain``."""
+    masks = heldout_blocks(e_start.shape[0], blocks)
+    d = np.array([log_error_ratio(float(np.mean(e_start[m])), float(np.mean(e_warp[m]))) for m in masks])
+    return consistent_gain(d)
+
+
+def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.ndarray], params: RodParams,
+               settings: SimSettings, center: float, kappa_scale: float, cfg: dict[str, Any],
+               inputs: Inputs | None = None, ports: Ports | None = None) -> RecordFit:
+    """The module's fit and decision on the derived training record ``arr`` (``positions_to_state``
+    arrays, time-major); ``law_rod(W)`` is the learned rod with warp coefficients W (B, K)
+    (``BendingWarp`` of its bending law); ``cfg``: config ``camera.learn.record_fit``."""
+    t_start = time.perf_counter()
+    J, K = int(cfg["start_modes"]), int(cfg["warp_terms"])
+    n_t, iters = arr["t"].size, int(cfg["iterations"])
+    n_fit = max(3, int(round((1.0 - float(cfg["holdout_fraction"])) * n_t)))
+    full = record_residuals(law_rod, arr, params, settings, J, n_t, inputs, ports)
+    part = record_residuals(law_rod, arr, params, settings, J, n_fit, inputs, ports)
+    zero = np.zeros(2 * J + K)
+    r0 = full(zero[None])
+    learned = math.inf if r0 is None else float(np.sqrt(np.mean(r0**2)))
+    start_free = np.arange(2 * J + K) < 2 * J
+    a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
+    a_warp, _ = levenberg_marquardt(part, a_start, np.ones(2 * J + K, dtype=bool), iters)
+    both = full(np.stack([a_start, a_warp]))
+
+    def result(kept: bool, a: np.ndarray, fitted: float, ratio: float, se: float, note: str) -> RecordFit:
+        return RecordFit(kept, float(center), float(kappa_scale),
+                         [float(v) for v in (a[2 * J:] if kept else np.zeros(K))],
+                         [float(v) for v in a[:2 * J]], learned, fitted_start, fitted, ratio, se, note,
+                         time.perf_counter() - t_start)
+    if both is None:
+        fitted_start = math.inf
+        return result(False, zero, learned, math.nan, math.nan, "a fitted rod left the physical range")
+    res = both.reshape(2, n_t, -1)
+    fitted_start = float(np.sqrt(np.mean(res[0] ** 2)))
+    ratio, se, better = decide(res[0, n_fit:] ** 2, res[1, n_fit:] ** 2, int(cfg["blocks"]))
+    if not better:
+        return result(False, a_start, fitted_start, ratio, se,
+                      "the warp does not forecast the held-out blocks consistently better")
+    a, rms = levenberg_marquardt(full, a_warp, np.ones(2 * J + K, dtype=bool), iters)
+    return result(True, a, rms, ratio, se, "kept: forecasts the held-out blocks consistently better")

@@ -1,0 +1,47 @@
+"""The record fit's warp of a bending law (``learning.record_fit``): m(kappa) w(kappa).
+
+w = 1 + sum_{k < K} a_k u^(2k), u = (kappa - c) / kappa_s clipped to [-1, 1]: even in u (the law
+keeps its symmetry about its centre c), multiplicative (m(c) = 0 is kept), constant beyond the
+covered range |kappa - c| <= kappa_s (the polynomial is not extrapolated).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+Warp = tuple[float, float, np.ndarray]  # (center c [1/m], kappa scale kappa_s [1/m], coefficients a_k)
+
+
+def warp_factor(kappa: np.ndarray, center: float, scale: float, coefficients: np.ndarray) -> np.ndarray:
+    """w(kappa) = 1 + sum_k a_k u^(2k), u = (kappa - center) / scale clipped to [-1, 1] (beyond the
+    covered range the warp stays at its edge value: the polynomial is not extrapolated);
+    ``coefficients`` (K,) or, for a batch of rods, (B, K) against kappa (B, ...)."""
+    a = np.asarray(coefficients, dtype=float)
+    u2 = np.minimum(((np.asarray(kappa, dtype=float) - center) / scale) ** 2, 1.0)
+    w = np.ones_like(u2)
+    for k in range(a.shape[-1]):
+        ak = a[..., k] if a.ndim == 1 else a[:, k].reshape((-1,) + (1,) * (u2.ndim - 1))
+        w = w + ak * u2**k
+    return w
+
+
+class BendingWarp:
+    """A bending-law component (``learned.Component``, objective features: column 0 is kappa)
+    times ``warp_factor``; coefficients (B, K) warp member b of a batched rollout by row b."""
+
+    def __init__(self, law: Any, center: float, scale: float, coefficients: np.ndarray):
+        self.law, self.center, self.scale = law, float(center), float(scale)
+        self.coefficients = np.asarray(coefficients, dtype=float)
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return self.law(X) * warp_factor(X[..., 0], self.center, self.scale, self.coefficients)
+
+
+def manifest_warp(record_fit: dict[str, Any] | None) -> Warp | None:
+    """(center, kappa_scale, coefficients) of a manifest's kept warp, else None."""
+    if not record_fit or not record_fit.get("kept"):
+        return None
+    return (float(record_fit["center"]), float(record_fit["kappa_scale"]),
+            np.asarray(record_fit["coefficients"], dtype=float))

@@ -1,0 +1,122 @@
+"""The record fit (learning/record_fit.py, learning/warp.py): the learned rod fitted to its own
+training record by output error, its start and a warp of its bending law, kept only where the
+warp forecasts held-out blocks of the record better."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from crgpr.config import load_config, rod_params
+from crgpr.learning.learned import LearnedRod, rollout
+from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw
+from crgpr.learning.record_fit import fit_record, start_state
+from crgpr.learning.warp import BendingWarp, manifest_warp, warp_factor
+from crgpr.physics.params import SimSettings
+
+finite = st.floats(-0.5, 0.5, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(center=st.floats(-5, 5), scale=st.floats(1, 80), a=st.lists(finite, min_size=1, max_size=4),
+       d=st.floats(0, 200))
+def test_warp_is_even_about_its_centre_and_constant_beyond_the_covered_range(center, scale, a, d):
+    w_plus = warp_factor(np.array([center + d]), center, scale, np.array(a))
+    w_minus = warp_factor(np.array([center - d]), center, scale, np.array(a))
+    assert np.allclose(w_plus, w_minus, rtol=1e-12, atol=1e-12)
+    assert warp_factor(np.array([center + d]), center, scale, np.zeros(len(a)))[0] == 1.0
+    if d >= scale:  # beyond the training range: the edge value 1 + sum a_k, not the polynomial
+        assert math.isclose(w_plus[0], 1.0 + sum(a), rel_tol=1e-12, abs_tol=1e-12)
+
+
+def test_warp_keeps_the_laws_zero_and_warps_each_batch_member_by_its_own_row():
+    P = rod_params(load_config("tests/smoke_config.yaml"))
+    law = NominalLaw("m", P)
+    X = np.zeros((3, P.N, 5))
+    X[..., 0] = np.linspace(-30, 30, P.N)
+    A = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.2]])
+    batched = BendingWarp(law, 0.0, 30.0, A)(X)
+    for b in range(3):
+        single = BendingWarp(law, 0.0, 30.0, A[b])(X[b])
+        assert np.array_equal(batched[b], single)
+    assert np.array_equal(batched[0], law(X[0]))
+    at_rest = np.zeros((1, 5))
+    assert BendingWarp(law, 0.0, 30.0, np.array([0.3, -0.2]))(at_rest)[0] == 0.0
+    assert manifest_warp({"kept": False, "center": 0, "kappa_scale": 1, "coefficients": [0.1]}) is None
+
+
+def test_start_state_of_a_rigidly_rotating_rod_is_that_rod():
+    """Zero corrections: positions rebuilt at the rest strains from the clamped base, linear
+    momenta rho A omega s (-sin, cos) of a rigid rotation, angles and rates as derived; the
+    corrections leave the clamped node alone."""
+    P = rod_params(load_config("tests/smoke_config.yaml"))
+    th0, om = 1.1, 0.7
+    s = np.linspace(0, P.L0, P.N + 1)
+    arr = {"x": (s * math.cos(th0))[None], "y": (s * math.sin(th0))[None],
+           "theta": np.full((1, P.N + 1), th0), "p_theta": np.r_[0.0, np.full(P.N, P.rhoI * om)][None]}
+    q, p = start_state(arr, P, np.zeros((1, 4)), 2)
+    assert np.allclose(q[0, :, 0], s * math.cos(th0), atol=1e-15)
+    assert np.allclose(q[0, :, 1], s * math.sin(th0), atol=1e-15)
+    # the base node's rate is clamped to 0: the first segment turns at omega / 2 (mid-segment mean)
+    omega_bar = np.r_[0.5 * om, np.full(P.N - 1, om)]
+    v_expected = np.r_[0.0, np.cumsum(P.ds * omega_bar)]
+    assert np.allclose(p[0, :, 0], -P.rhoA * math.sin(th0) * v_expected, atol=1e-15)
+    assert np.allclose(p[0, :, 1], P.rhoA * math.cos(th0) * v_expected, atol=1e-15)
+    qb, pb = start_state(arr, P, np.array([[0.1, -0.2, 0.5, 0.3]]), 2)
+    assert np.array_equal(qb[0, 0], q[0, 0]) and np.array_equal(pb[0, 0], p[0, 0])
+    assert not np.allclose(qb[0, -1], q[0, -1])
+
+
+def _nominal_rod(P, warp: np.ndarray | None, scale: float) -> LearnedRod:
+    comps = {c: NominalLaw(law, P) for law, c in NOMINAL_LAWS.items()}
+    if warp is not None:
+        comps["obj_m"] = BendingWarp(comps["obj_m"], 0.0, scale, warp)
+    return LearnedRod(comps, "objective", P)
+
+
+def _record(P, true_warp: np.ndarray, scale: float, noise: float, seed: int) -> dict[str, np.ndarray]:
+    """A 0.4 s release from 80 deg of the rod whose bending law is the nominal one times
+    ``true_warp``; its first frame's derived angles and rates off by a smooth error (what the
+    derived start of a camera record has), its angles with iid noise."""
+    sim = SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational")
+    tr = rollout(_nominal_rod(P, true_warp, scale), 80.0, sim)
+    s = np.linspace(0, 1, P.N + 1)
+    arr = {"t": tr.t, "x": tr.q[..., 0], "y": tr.q[..., 1], "theta": tr.q[..., 2].copy(),
+           "p_x": tr.p[..., 0], "p_y": tr.p[..., 1], "p_theta": tr.p[..., 2].copy()}
+    arr["theta"] += np.random.default_rng(seed).normal(0, noise, arr["theta"].shape) * (s > 0)
+    arr["theta"][0] += 0.02 * s**2
+    arr["p_theta"][0] += P.rhoI * 0.5 * s
+    return arr
+
+
+@pytest.fixture(scope="module")
+def smoke():
+    cfg = load_config("tests/smoke_config.yaml")
+    rf = copy.deepcopy(cfg["camera"]["learn"]["record_fit"])
+    rf.update(start_modes=2, warp_terms=1)
+    return rod_params(cfg), SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"), rf
+
+
+def test_a_stiffer_law_is_recovered_from_its_record_and_kept(smoke):
+    """The law 8 % stiffer than the learned one: the fit finds the factor (to 1 %), fits the
+    start's error away and keeps the warp (it forecasts the held-out blocks better)."""
+    P, sim, rf = smoke
+    arr = _record(P, np.array([0.08]), 20.0, 1e-4, seed=1)
+    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    assert fit.kept, fit
+    assert abs(fit.coefficients[0] - 0.08) < 0.01, fit
+    assert fit.rmse_fitted < 0.2 * fit.rmse_learned and fit.heldout_log_ratio > 0
+
+
+def test_no_warp_is_kept_where_the_learned_law_is_the_true_one(smoke):
+    P, sim, rf = smoke
+    arr = _record(P, np.array([0.0]), 20.0, 1e-3, seed=2)
+    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    assert not fit.kept and fit.coefficients == [0.0], fit
+    assert manifest_warp(fit.to_dict()) is None
+    assert fit.rmse_start_only < fit.rmse_learned  # the start is still fitted
