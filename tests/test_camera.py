@@ -15,8 +15,9 @@ from paper_rod import paper_rod
 
 from crgpr.cli import main
 from crgpr.commands.camera import camera_frame
-from crgpr.commands.learn import learn, load_learned, read_manifest
+from crgpr.commands.learn import learn, learned_components, load_learned, read_manifest
 from crgpr.config import load_config, rod_params
+from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
@@ -106,6 +107,27 @@ def test_manifest_records_what_the_model_was_trained_on(smoke_models):
     kept, snr = m["bending_segments_kept"], m["bending_segment_snr"]  # the clamped angle fit's noise
     assert len(snr) == 10 and kept == [j for j in range(10) if snr[j] >= cfg["camera"]["learn"]["snr_min"]]
     assert len(kept) >= 2 and read_manifest(d / "m_full")["bending_segments_kept"] is None
+
+
+def test_positions_are_fitted_to_their_own_record_and_a_kept_warp_is_what_the_model_uses(smoke_models):
+    """From positions ``crgpr learn`` fits the start and the bending law's warp to the record
+    (learning/record_fit.py) and records the decision; a kept warp is applied by every loader
+    (``learned_components``), a full-state model has none."""
+    cfg, d = smoke_models
+    rf = read_manifest(d / "m_pos")["record_fit"]
+    assert read_manifest(d / "m_full")["record_fit"] is None
+    K = cfg["camera"]["learn"]["record_fit"]["warp_terms"]
+    assert len(rf["coefficients"]) == K and rf["seconds"] > 0 and rf["note"]
+    assert rf["kept"] or rf["coefficients"] == [0.0] * K
+    man = read_manifest(d / "m_pos")
+    def load(m: str):
+        return load_evaluator(d / "m_pos" / m)
+    plain, _ = learned_components(d / "m_pos", {**man, "record_fit": None}, load)
+    kept = {**rf, "kept": True, "coefficients": [0.05] + [0.0] * (K - 1)}
+    warped, _ = learned_components(d / "m_pos", {**man, "record_fit": kept}, load)
+    X = np.zeros((4, 5))
+    X[:, 0] = [-20.0, -5.0, 5.0, 20.0]
+    assert np.allclose(warped["obj_m"](X), 1.05 * plain["obj_m"](X), rtol=1e-12)
 
 
 def test_positions_only_recovers_the_full_state_accuracy(smoke_models):

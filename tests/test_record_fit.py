@@ -120,3 +120,28 @@ def test_no_warp_is_kept_where_the_learned_law_is_the_true_one(smoke):
     assert not fit.kept and fit.coefficients == [0.0], fit
     assert manifest_warp(fit.to_dict()) is None
     assert fit.rmse_start_only < fit.rmse_learned  # the start is still fitted
+
+
+def test_a_record_too_short_to_hold_out_keeps_the_law_as_learned(smoke):
+    P, sim, rf = smoke
+    arr = {k: v[:12] for k, v in _record(P, np.array([0.05]), 20.0, 0.0, seed=3).items()}
+    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    assert not fit.kept and "too short" in fit.note and fit.coefficients == [0.0]
+
+
+def test_a_warped_posterior_sample_set_is_still_a_sample_set_for_the_uq_rollout():
+    """The UQ rollout sees a kept warp around the bending law's samples (``learned_components``
+    wraps whatever ``load`` gives): the wrapped set is recognised, subset and sized like the bare one."""
+    from crgpr.learning.nominal import SelectedInputs
+    from crgpr.uq.rollout import n_samples_of
+    from crgpr.uq.samples import TabulatedSamples, is_sample_set, select_samples
+
+    grid = np.linspace(-40.0, 40.0, 81)
+    values = np.stack([0.0015 * (1 + 0.01 * s) * grid for s in range(5)])
+    smp = BendingWarp(SelectedInputs(TabulatedSamples(grid, values), [0]), 0.0, 40.0, np.array([0.1]))
+    assert is_sample_set(smp) and n_samples_of({"obj_m": smp}) == 5
+    sub = select_samples(smp, np.array([1, 3]))
+    assert isinstance(sub, BendingWarp) and n_samples_of({"obj_m": sub}) == 2
+    X = np.zeros((2, 4, 5))
+    X[..., 0] = np.array([-30.0, -10.0, 10.0, 30.0])
+    assert np.allclose(sub(X), 1.1 * values[[1, 3]][:, [10, 30, 50, 70]], rtol=1e-12)

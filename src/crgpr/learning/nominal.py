@@ -98,6 +98,10 @@ class SelectedInputs:
         self.arclength = None if arclength is None else np.asarray(arclength, dtype=float)
         self.meta = getattr(component, "meta", {})
 
+    def rewrap(self, component: Any) -> SelectedInputs:
+        """The same input selection around another component (its posterior samples)."""
+        return SelectedInputs(component, self.columns, self.arclength)
+
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X)
         if self.arclength is not None:

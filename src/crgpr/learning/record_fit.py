@@ -180,12 +180,21 @@ def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.nd
                settings: SimSettings, center: float, kappa_scale: float, cfg: dict[str, Any],
                inputs: Inputs | None = None, ports: Ports | None = None) -> RecordFit:
     """The module's fit and decision on the derived training record ``arr`` (``positions_to_state``
-    arrays, time-major); ``law_rod(W)`` is the learned rod with warp coefficients W (B, K)
-    (``BendingWarp`` of its bending law); ``cfg``: config ``camera.learn.record_fit``."""
+    arrays, time-major; its first ``max_record_s`` seconds); ``law_rod(W)`` is the learned rod with
+    warp coefficients W (B, K) (``BendingWarp`` of its bending law); ``cfg``: config
+    ``camera.learn.record_fit``. A record whose held-out part has fewer than two frames per
+    block keeps the law as learned."""
     t_start = time.perf_counter()
-    J, K = int(cfg["start_modes"]), int(cfg["warp_terms"])
+    J, K, blocks = int(cfg["start_modes"]), int(cfg["warp_terms"]), int(cfg["blocks"])
+    within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
+    arr = {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
+           for k, v in arr.items()}
     n_t, iters = arr["t"].size, int(cfg["iterations"])
-    n_fit = max(3, int(round((1.0 - float(cfg["holdout_fraction"])) * n_t)))
+    n_fit = int(round((1.0 - float(cfg["holdout_fraction"])) * n_t))
+    if n_fit < 3 or n_t - n_fit < 2 * blocks:
+        return RecordFit(False, float(center), float(kappa_scale), [0.0] * K, [0.0] * (2 * J), math.nan,
+                         math.nan, math.nan, math.nan, math.nan,
+                         f"record too short to decide: {n_t} frames", time.perf_counter() - t_start)
     full = record_residuals(law_rod, arr, params, settings, J, n_t, inputs, ports)
     part = record_residuals(law_rod, arr, params, settings, J, n_fit, inputs, ports)
     zero = np.zeros(2 * J + K)
@@ -206,7 +215,7 @@ def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.nd
         return result(False, zero, learned, math.nan, math.nan, "a fitted rod left the physical range")
     res = both.reshape(2, n_t, -1)
     fitted_start = float(np.sqrt(np.mean(res[0] ** 2)))
-    ratio, se, better = decide(res[0, n_fit:] ** 2, res[1, n_fit:] ** 2, int(cfg["blocks"]))
+    ratio, se, better = decide(res[0, n_fit:] ** 2, res[1, n_fit:] ** 2, blocks)
     if not better:
         return result(False, a_start, fitted_start, ratio, se,
                       "the warp does not forecast the held-out blocks consistently better")

@@ -29,14 +29,20 @@ def warp_factor(kappa: np.ndarray, center: float, scale: float, coefficients: np
 
 class BendingWarp:
     """A bending-law component (``learned.Component``, objective features: column 0 is kappa)
-    times ``warp_factor``; coefficients (B, K) warp member b of a batched rollout by row b."""
+    times ``warp_factor``; coefficients (B, K) warp member b of a batched rollout by row b. A
+    wrapper like ``nominal.SelectedInputs``: ``component`` is the law it wraps (a posterior
+    sample set for the UQ rollout), ``rewrap`` the same warp around another."""
 
-    def __init__(self, law: Any, center: float, scale: float, coefficients: np.ndarray):
-        self.law, self.center, self.scale = law, float(center), float(scale)
+    def __init__(self, component: Any, center: float, scale: float, coefficients: np.ndarray):
+        self.component, self.center, self.scale = component, float(center), float(scale)
         self.coefficients = np.asarray(coefficients, dtype=float)
+        self.meta = getattr(component, "meta", {})
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        return self.law(X) * warp_factor(X[..., 0], self.center, self.scale, self.coefficients)
+        return self.component(X) * warp_factor(X[..., 0], self.center, self.scale, self.coefficients)
+
+    def rewrap(self, component: Any) -> BendingWarp:
+        return BendingWarp(component, self.center, self.scale, self.coefficients)
 
 
 def manifest_warp(record_fit: dict[str, Any] | None) -> Warp | None:

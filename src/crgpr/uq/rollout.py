@@ -24,12 +24,11 @@ import numpy as np
 import pandas as pd
 
 from crgpr.learning.learned import LearnedRod, rollout_members
-from crgpr.learning.nominal import SelectedInputs
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import straight_rod
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
-from crgpr.uq.samples import SampleSet, is_sample_set, select_samples
+from crgpr.uq.samples import SampleSet, is_sample_set, select_samples, unwrapped
 
 log = logging.getLogger(__name__)
 
@@ -39,8 +38,7 @@ UQ_COLUMNS: tuple[str, ...] = ("sample", *TRAJECTORY_COLUMNS)
 def n_samples_of(samples: Mapping[str, Any]) -> int:
     """The common S of the components that are sample sets (deterministic ones, e.g. the nominal
     laws of a grey-box model, are shared by every sample)."""
-    sizes = {m: (s.component if isinstance(s, SelectedInputs) else s).n_samples
-             for m, s in samples.items() if is_sample_set(s)}
+    sizes = {m: unwrapped(s).n_samples for m, s in samples.items() if is_sample_set(s)}
     if len(set(sizes.values())) != 1:
         raise ValueError(f"UQ samples have different S per model (or none is sampled): {sizes}")
     return next(iter(sizes.values()))

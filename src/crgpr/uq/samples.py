@@ -42,6 +42,7 @@ from crgpr.gp.sampling import compress as compress_samples
 from crgpr.io import load_npz, write_json, write_npz
 from crgpr.learning.gradient_models import ALL_MODELS
 from crgpr.learning.nominal import SelectedInputs
+from crgpr.learning.warp import BendingWarp
 from crgpr.uq.settings import UQSettings
 
 log = logging.getLogger(__name__)
@@ -122,21 +123,29 @@ def uq_seed(seed: int, model: str) -> int:
     return int(np.random.SeedSequence([int(seed), 5, ALL_MODELS.index(model)]).generate_state(1)[0])
 
 
+WRAPPERS = (SelectedInputs, BendingWarp)  # components that see another through ``component``
+
+
+def unwrapped(component: Any) -> Any:
+    """The component inside any ``WRAPPERS`` (input selection, record-fit warp)."""
+    while isinstance(component, WRAPPERS):
+        component = component.component
+    return component
+
+
 def is_sample_set(component: Any) -> bool:
     """Whether a learned-rod component carries a sample axis (a sample set, or one seen through
-    ``SelectedInputs``); a deterministic component (a nominal law) is shared by every sample."""
-    if isinstance(component, SelectedInputs):
-        return is_sample_set(component.component)
-    return isinstance(component, (CompressedSamples, TabulatedSamples))
+    ``WRAPPERS``); a deterministic component (a nominal law) is shared by every sample."""
+    return isinstance(unwrapped(component), (CompressedSamples, TabulatedSamples))
 
 
 def select_samples(smp: Any, keep: np.ndarray) -> Any:
     """The sample set restricted to the samples ``keep`` (indices along the sample axis); a
-    component seen through ``SelectedInputs`` keeps its columns, a deterministic one is returned
-    as it is."""
+    component seen through ``WRAPPERS`` keeps its wrapping, a deterministic one is returned as
+    it is."""
     keep = np.asarray(keep, dtype=int)
-    if isinstance(smp, SelectedInputs):
-        return SelectedInputs(select_samples(smp.component, keep), smp.columns, smp.arclength)
+    if isinstance(smp, WRAPPERS):
+        return smp.rewrap(select_samples(smp.component, keep))
     if not is_sample_set(smp):
         return smp
     if isinstance(smp, TabulatedSamples):
