@@ -35,6 +35,11 @@ A passive bending damping m_d = c dkappa/dt, c >= 0 (a viscoelastic rod's), is f
 with an elastic law on the bending samples and kept only where held-out time blocks support it
 (``camera.learn.bending_damping``, ``learning.damping``); the elastic laws are then learned
 without it and the learned rod's R applies it (manifest ``bending_damping``).
+
+From positions, the learned rod is then fitted to its own record by output error
+(``camera.learn.record_fit``, ``learning.record_fit``): the record's start and a warp of the
+bending law, the warp kept only where it forecasts the record's held-out last part better
+(manifest ``record_fit``; every loader of the directory applies a kept warp).
 """
 
 from __future__ import annotations
