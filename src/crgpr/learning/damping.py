@@ -42,14 +42,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
 from crgpr.learning.gradient_models import training_data
 from crgpr.learning.laws import Z95, consistent_gain, heldout_blocks, jackknife_se, log_error_ratio
-from crgpr.learning.learned import LearnedRod, rollout
+from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
@@ -235,8 +235,7 @@ def record_rmse_theta(components: dict[str, Any], features: str, params: RodPara
     record's ``inputs``) from the first frame of the training arrays ``arr`` over the record and
     linearly interpolated to its times, and the record's angles; inf where it diverges."""
     t, theta = arr["t"], arr["theta"]
-    st = replace(settings, t_end=float(t[-1] - t[0]),
-                 record_every=max(1, int(round(float(np.min(np.diff(t))) / settings.dt))))
+    st = record_settings(settings, t)
     q0 = np.stack([arr["x"][0], arr["y"][0], theta[0]], axis=-1)
     p0 = np.stack([arr[c][0] for c in ("p_x", "p_y", "p_theta")], axis=-1)
 
@@ -247,7 +246,6 @@ def record_rmse_theta(components: dict[str, Any], features: str, params: RodPara
                          initial=(q0, p0, float(t[0])))
         except SimulationDiverged:
             return math.inf
-        th = np.stack([np.interp(t, tr.t, tr.q[:, i, 2]) for i in range(1, theta.shape[1])], axis=-1)
-        return float(np.sqrt(np.mean((th - theta[:, 1:]) ** 2)))
+        return float(np.sqrt(np.mean((free_angles_at(tr, t) - theta[:, 1:]) ** 2)))
 
     return rmse

@@ -39,7 +39,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -234,6 +234,22 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
                       input_work=out.input_work,
                       u=None if inputs is None else u[::settings.record_every], ports=ports,
                       force_work=out.force_work)
+
+
+def record_settings(settings: SimSettings, t: np.ndarray) -> SimSettings:
+    """``settings``' step and scheme over a record's frame times t (n_t,): from t[0] to t[-1],
+    recording every frame interval (its smallest, in steps)."""
+    return replace(settings, t_end=float(t[-1] - t[0]),
+                   record_every=max(1, int(round(float(np.min(np.diff(t))) / settings.dt))))
+
+
+def free_angles_at(tr: Trajectory, t: np.ndarray) -> np.ndarray:
+    """theta of the free nodes 1..N of a rollout linearly interpolated to the times t:
+    (n_t, ..., N) for states q (n_rec, ..., N+1, 3) (a batch keeps its axis)."""
+    th = tr.q[..., 1:, 2]
+    flat = th.reshape(th.shape[0], -1)
+    out = np.stack([np.interp(t, tr.t, flat[:, j]) for j in range(flat.shape[1])], axis=-1)
+    return out.reshape(t.size, *th.shape[1:])
 
 
 def antiderivative(comp: Component, x: np.ndarray) -> np.ndarray:

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
-from crgpr.learning.learned import LearnedRod, rollout
+from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
@@ -112,8 +112,7 @@ def record_residuals(model_for: Callable[[np.ndarray], LearnedRod], arr: dict[st
     coefficients (``model_for(A[:, 2J:])``: the learned rod of those warps); None where any rod
     of the batch leaves the physical range."""
     t, theta = arr["t"][:n_frames], arr["theta"][:n_frames, 1:]
-    st = replace(settings, t_end=float(t[-1] - t[0]),
-                 record_every=max(1, int(round(float(np.min(np.diff(arr["t"]))) / settings.dt))))
+    st = replace(record_settings(settings, arr["t"]), t_end=float(t[-1] - t[0]))
 
     def residuals(A: np.ndarray) -> np.ndarray | None:
         q0, p0 = start_state(arr, params, A[:, :2 * modes], modes)
@@ -122,11 +121,7 @@ def record_residuals(model_for: Callable[[np.ndarray], LearnedRod], arr: dict[st
                          inputs=inputs, ports=ports, initial=(q0, p0, float(t[0])))
         except SimulationDiverged:
             return None
-        out = np.empty((A.shape[0], t.size, theta.shape[1]))
-        for i in range(theta.shape[1]):
-            for r in range(A.shape[0]):
-                out[r, :, i] = np.interp(t, tr.t, tr.q[:, r, i + 1, 2])
-        return (out - theta[None]).reshape(A.shape[0], -1)
+        return (free_angles_at(tr, t) - theta[:, None]).transpose(1, 0, 2).reshape(A.shape[0], -1)
     return residuals
 
 
@@ -205,19 +200,21 @@ def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.nd
     a_warp, _ = levenberg_marquardt(part, a_start, np.ones(2 * J + K, dtype=bool), iters)
     both = full(np.stack([a_start, a_warp]))
 
-    def result(kept: bool, a: np.ndarray, fitted: float, ratio: float, se: float, note: str) -> RecordFit:
+    def result(kept: bool, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float,
+               note: str) -> RecordFit:
         return RecordFit(kept, float(center), float(kappa_scale),
                          [float(v) for v in (a[2 * J:] if kept else np.zeros(K))],
-                         [float(v) for v in a[:2 * J]], learned, fitted_start, fitted, ratio, se, note,
+                         [float(v) for v in a[:2 * J]], learned, start_only, fitted, ratio, se, note,
                          time.perf_counter() - t_start)
     if both is None:
-        fitted_start = math.inf
-        return result(False, zero, learned, math.nan, math.nan, "a fitted rod left the physical range")
+        return result(False, zero, math.inf, learned, math.nan, math.nan,
+                      "a fitted rod left the physical range")
     res = both.reshape(2, n_t, -1)
-    fitted_start = float(np.sqrt(np.mean(res[0] ** 2)))
+    start_only = float(np.sqrt(np.mean(res[0] ** 2)))
     ratio, se, better = decide(res[0, n_fit:] ** 2, res[1, n_fit:] ** 2, blocks)
     if not better:
-        return result(False, a_start, fitted_start, ratio, se,
+        return result(False, a_start, start_only, start_only, ratio, se,
                       "the warp does not forecast the held-out blocks consistently better")
     a, rms = levenberg_marquardt(full, a_warp, np.ones(2 * J + K, dtype=bool), iters)
-    return result(True, a, rms, ratio, se, "kept: forecasts the held-out blocks consistently better")
+    return result(True, a, start_only, rms, ratio, se,
+                  "kept: forecasts the held-out blocks consistently better")
