@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from crgpr.config import ConfigError, add_config_options, cli_config, rod_params, sim_settings
+from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
@@ -325,7 +325,7 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
     training record (``learning.damping.record_rmse_theta``)."""
     man = {"rod": params.to_dict(), "features": features, "nominal_laws": nominal, "models": trained}
     comps, center = learned_components(out, man, lambda m: load_evaluator(out / m))
-    return record_rmse_theta(comps, features, params, center, _record_settings(cfg, params), arr,
+    return record_rmse_theta(comps, features, params, center, _record_settings(cfg, arr, params), arr,
                              inputs, ports)
 
 
@@ -340,14 +340,17 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     def law_rod(W: np.ndarray) -> LearnedRod:
         return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W)},
                           "objective", params, None, damping)
-    return fit_record(law_rod, arr, params, _record_settings(cfg, params), center, kappa_scale,
+    return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
                       cfg["camera"]["learn"]["record_fit"], inputs, ports)
 
 
-def _record_settings(cfg: dict[str, Any], params: RodParams) -> SimSettings:
-    """The config's step and scheme, checked for the model's rod (the rollouts over the training
-    record set its length and frames: ``learned.record_settings``)."""
-    return checked_step(sim_settings(cfg), params)
+def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:
+    """The config's step and scheme (the keys the rules pass: ``dt_s``, ``record_every``,
+    ``scheme``) over the training record, checked for the model's rod (the rollouts over the
+    record set its frames: ``learned.record_settings``)."""
+    sim = cfg["simulation"]
+    return checked_step(SimSettings(dt=float(sim["dt_s"]), t_end=float(arr["t"][-1] - arr["t"][0]),
+                                    record_every=int(sim["record_every"]), scheme=str(sim["scheme"])), params)
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
