@@ -21,6 +21,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import write_parquet
 from crgpr.learning import camera
 from crgpr.learning.learned import rollout
+from crgpr.learning.warp import admissible
 from crgpr.measured.records import ScreenSettings, validate_frame
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
@@ -112,10 +113,13 @@ def test_manifest_records_what_the_model_was_trained_on(smoke_models):
 def test_positions_are_fitted_to_their_own_record_and_a_kept_warp_is_what_the_model_uses(smoke_models):
     """From positions ``crgpr learn`` fits the start and the bending law's warp to the record
     (learning/record_fit.py) and records the decision; a kept warp is applied by every loader
-    (``learned_components``), a full-state model has none."""
+    (``learned_components``); a full-state model is fitted from its recorded start (no start
+    modes) and any warp it keeps keeps the law's sign."""
     cfg, d = smoke_models
     rf = read_manifest(d / "m_pos")["record_fit"]
-    assert read_manifest(d / "m_full")["record_fit"] is None
+    full = read_manifest(d / "m_full")["record_fit"]
+    assert full["exact_start"] and full["start_coefficients"] == [] and not rf["exact_start"]
+    assert admissible(full["coefficients"]).all() and admissible(rf["coefficients"]).all()
     K = cfg["camera"]["learn"]["record_fit"]["warp_terms"]
     assert len(rf["coefficients"]) == K and rf["seconds"] > 0 and rf["note"]
     assert rf["kept"] or rf["coefficients"] == [0.0] * K

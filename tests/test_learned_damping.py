@@ -264,12 +264,36 @@ def learned_smoke(tmp_path_factory):
     return cfg, out
 
 
-def test_learn_keeps_a_viscoelastic_rods_damping_and_refines_it_towards_the_truth(learned_smoke):
+def test_learn_keeps_a_viscoelastic_rods_damping_and_sizes_it_on_the_record(learned_smoke):
+    """The damping is kept by its held-out blocks; the record fit (learning/record_fit.py) sizes
+    c by output error from the recorded start: the rod with the fitted c reproduces its record
+    better than with the regression's c, and c is closer to the truth."""
     _, out = learned_smoke
-    fit = out["viscoelastic"][0]["bending_damping"]
-    assert fit["kept"] and fit["coefficient"] == fit["c_refined"] > 0
+    man = out["viscoelastic"][0]
+    fit, rf = man["bending_damping"], man["record_fit"]
+    assert fit["kept"] and fit["coefficient"] == fit["c_record_fit"] == rf["damping"] > 0
+    assert rf["damping_before"] == fit["c_fit"] and fit["c_refined"] is None
     assert fit["heldout_log_ratio"] > 1.96 * fit["heldout_log_ratio_se"]
-    # the refined c reproduces the record better than the regression's and is closer to the truth
+    assert rf["rmse_start_only"] < rf["rmse_learned"]
+    assert abs(math.log(fit["coefficient"] / C_KV)) < abs(math.log(fit["c_fit"] / C_KV))
+
+
+def test_without_the_record_fit_the_damping_is_refined_by_the_rollout(tmp_path):
+    """``record_fit: none``: the kept c is refined by the golden-section rollout search instead,
+    towards the truth."""
+    from crgpr.commands.learn import learn
+    from crgpr.config import load_config, rod_params
+    from crgpr.io import write_parquet
+    from crgpr.physics.simulate import trajectory_frame
+
+    cfg = load_config("tests/smoke_config.yaml")
+    cfg["camera"]["learn"]["record_fit"]["mode"] = "none"
+    rec = SimSettings(dt=1e-4, t_end=1.5, record_every=40, scheme="variational")
+    tr = simulate(85.0, replace(rod_params(cfg), internal_damping=C_KV), rec)
+    write_parquet(trajectory_frame(tr), tmp_path / "visco.parquet")
+    man = learn(tmp_path / "visco.parquet", tmp_path / "m", cfg)
+    fit = man["bending_damping"]
+    assert man["record_fit"] is None and fit["kept"] and fit["coefficient"] == fit["c_refined"] > 0
     assert fit["refine_rmse_theta"] < fit["fit_rmse_theta"]
     assert abs(math.log(fit["c_refined"] / C_KV)) < abs(math.log(fit["c_fit"] / C_KV))
 

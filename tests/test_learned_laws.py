@@ -40,6 +40,30 @@ def test_rest_curvature_of_an_odd_law_is_recovered_within_its_band():
     assert r.band_lo <= 1.7 <= r.band_hi and r.band_hi - r.band_lo < 0.2, r
 
 
+def test_a_strongly_stiffening_law_raises_the_degree_and_finds_its_rest_curvature():
+    """m = EI sinh(beta (kappa - c)) / beta, beta = 0.08 m, about c = -2 /m, from exact targets of
+    a record that bends it far (|kappa - c| up to 60 /m): the cubic's misfit at large curvature
+    moves its c off the truth by over 0.3 /m; the degree is raised while the held-out blocks
+    support it and the c of the raised law is the truth to 0.01 /m."""
+    t = np.linspace(0.0, 2.0, 4000)
+    kappa = -2.0 + 60.0 * np.exp(-0.3 * t) * np.cos(7.0 * t)
+    m = EI * np.sinh(0.08 * (kappa + 2.0)) / 0.08
+    cubic = rest_state(kappa, m, 3, 10)
+    raised = rest_state(kappa, m, 3, 10, max_degree=7)
+    assert abs(cubic.kappa_rest + 2.0) > 0.3, cubic
+    assert raised.degree > 3 and raised.degree_steps[0]["taken"], raised
+    assert abs(raised.kappa_rest + 2.0) < 0.01 and raised.symmetric, raised
+
+
+def test_a_cubic_law_keeps_the_cubic_degree():
+    """The law is the cubic of ``_record`` with target noise: no higher degree predicts the
+    held-out blocks better, D stays 3 and c is the one of the fixed-degree fit."""
+    kappa, m = _record(c=1.7)
+    fixed, sel = rest_state(kappa, m, 3, 10), rest_state(kappa, m, 3, 10, max_degree=7)
+    assert sel.degree == 3 and not sel.degree_steps[-1]["taken"], sel
+    assert sel.kappa_rest == fixed.kappa_rest
+
+
 def test_a_law_that_is_not_odd_about_any_curvature_is_not_mirrored():
     kappa, _ = _record(c=0.0)
     m = EI * (kappa + 0.4 * kappa**2)  # stiffer one way than the other (an asymmetric section)

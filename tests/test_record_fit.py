@@ -16,7 +16,7 @@ from crgpr.config import load_config, rod_params
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw
 from crgpr.learning.record_fit import fit_record, start_state
-from crgpr.learning.warp import BendingWarp, manifest_warp, warp_factor
+from crgpr.learning.warp import BendingWarp, admissible, manifest_warp, warp_factor
 from crgpr.physics.params import SimSettings
 
 finite = st.floats(-0.5, 0.5, allow_nan=False)
@@ -50,6 +50,12 @@ def test_warp_keeps_the_laws_zero_and_warps_each_batch_member_by_its_own_row():
     assert manifest_warp({"kept": False, "center": 0, "kappa_scale": 1, "coefficients": [0.1]}) is None
 
 
+def test_an_admissible_warp_keeps_the_laws_sign_over_the_covered_range():
+    assert admissible(np.array([[0.1, 0.2], [-0.5, 0.3], [0.0, 0.0]])).all()
+    assert not admissible(np.array([[-0.012, -84.4, -1.7e5]]))[0]  # reverses the law near |u| = 1
+    assert list(admissible(np.array([[0.0, -1.5], [0.0, -0.5]]))) == [False, True]
+
+
 def test_start_state_of_a_rigidly_rotating_rod_is_that_rod():
     """Zero corrections: positions rebuilt at the rest strains from the clamped base, linear
     momenta rho A omega s (-sin, cos) of a rigid rotation, angles and rates as derived; the
@@ -72,22 +78,27 @@ def test_start_state_of_a_rigidly_rotating_rod_is_that_rod():
     assert not np.allclose(qb[0, -1], q[0, -1])
 
 
-def _nominal_rod(P, warp: np.ndarray | None, scale: float) -> LearnedRod:
+def _nominal_rod(P, warp: np.ndarray | None, scale: float, damping: float = 0.0) -> LearnedRod:
     comps = {c: NominalLaw(law, P) for law, c in NOMINAL_LAWS.items()}
     if warp is not None:
         comps["obj_m"] = BendingWarp(comps["obj_m"], 0.0, scale, warp)
-    return LearnedRod(comps, "objective", P)
+    return LearnedRod(comps, "objective", P, None, damping)
+
+
+def _exact_record(P, true_warp: np.ndarray, scale: float, damping: float = 0.0) -> dict[str, np.ndarray]:
+    """A 0.4 s release from 80 deg of the rod whose bending law is the nominal one times
+    ``true_warp`` (and with a bending damping c), its full state as recorded."""
+    sim = SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational")
+    tr = rollout(_nominal_rod(P, true_warp, scale, damping), 80.0, sim)
+    return {"t": tr.t, "x": tr.q[..., 0], "y": tr.q[..., 1], "theta": tr.q[..., 2].copy(),
+            "p_x": tr.p[..., 0], "p_y": tr.p[..., 1], "p_theta": tr.p[..., 2].copy()}
 
 
 def _record(P, true_warp: np.ndarray, scale: float, noise: float, seed: int) -> dict[str, np.ndarray]:
-    """A 0.4 s release from 80 deg of the rod whose bending law is the nominal one times
-    ``true_warp``; its first frame's derived angles and rates off by a smooth error (what the
-    derived start of a camera record has), its angles with iid noise."""
-    sim = SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational")
-    tr = rollout(_nominal_rod(P, true_warp, scale), 80.0, sim)
+    """``_exact_record``, its first frame's derived angles and rates off by a smooth error (what
+    the derived start of a camera record has), its angles with iid noise."""
+    arr = _exact_record(P, true_warp, scale)
     s = np.linspace(0, 1, P.N + 1)
-    arr = {"t": tr.t, "x": tr.q[..., 0], "y": tr.q[..., 1], "theta": tr.q[..., 2].copy(),
-           "p_x": tr.p[..., 0], "p_y": tr.p[..., 1], "p_theta": tr.p[..., 2].copy()}
     arr["theta"] += np.random.default_rng(seed).normal(0, noise, arr["theta"].shape) * (s > 0)
     arr["theta"][0] += 0.02 * s**2
     arr["p_theta"][0] += P.rhoI * 0.5 * s
@@ -107,16 +118,39 @@ def test_a_stiffer_law_is_recovered_from_its_record_and_kept(smoke):
     start's error away and keeps the warp (it forecasts the held-out blocks better)."""
     P, sim, rf = smoke
     arr = _record(P, np.array([0.08]), 20.0, 1e-4, seed=1)
-    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf)
     assert fit.kept, fit
     assert abs(fit.coefficients[0] - 0.08) < 0.01, fit
     assert fit.rmse_fitted < 0.2 * fit.rmse_learned and fit.heldout_log_ratio > 0
 
 
+def test_a_damped_stiffer_rod_from_its_full_state_gets_both_its_damping_and_its_law(smoke):
+    """The full state of a rod 8 % stiffer, with a bending damping c: the fit starts from the
+    recorded state (no start modes), from c 40 % low, and recovers c (to 2 %) and the factor
+    (to 0.5 %); the damping's size is fitted with the start alone too, so the warp is kept only
+    for what c cannot explain."""
+    P, sim, rf = smoke
+    c_true = 4e-5
+    arr = _exact_record(P, np.array([0.08]), 20.0, c_true)
+    fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf,
+                     damping=0.6 * c_true, exact_start=True)
+    assert fit.kept and fit.exact_start and fit.start_coefficients == [], fit
+    assert abs(fit.damping / c_true - 1.0) < 0.02 and fit.damping_before == 0.6 * c_true, fit
+    assert abs(fit.coefficients[0] - 0.08) < 0.005, fit
+    assert fit.rmse_fitted < 0.05 * fit.rmse_learned
+
+
+def test_an_undamped_fit_leaves_the_damping_at_zero(smoke):
+    P, sim, rf = smoke
+    arr = _exact_record(P, np.array([0.05]), 20.0)
+    fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf, exact_start=True)
+    assert fit.damping == 0.0 and fit.kept and abs(fit.coefficients[0] - 0.05) < 0.005, fit
+
+
 def test_no_warp_is_kept_where_the_learned_law_is_the_true_one(smoke):
     P, sim, rf = smoke
     arr = _record(P, np.array([0.0]), 20.0, 1e-3, seed=2)
-    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf)
     assert not fit.kept and fit.coefficients == [0.0], fit
     assert manifest_warp(fit.to_dict()) is None
     assert fit.rmse_start_only < fit.rmse_learned  # the start is still fitted
@@ -125,7 +159,7 @@ def test_no_warp_is_kept_where_the_learned_law_is_the_true_one(smoke):
 def test_a_record_too_short_to_hold_out_keeps_the_law_as_learned(smoke):
     P, sim, rf = smoke
     arr = {k: v[:12] for k, v in _record(P, np.array([0.05]), 20.0, 0.0, seed=3).items()}
-    fit = fit_record(lambda W: _nominal_rod(P, W, 20.0), arr, P, sim, 0.0, 20.0, rf)
+    fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf)
     assert not fit.kept and "too short" in fit.note and fit.coefficients == [0.0]
 
 

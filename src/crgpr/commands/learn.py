@@ -36,10 +36,14 @@ with an elastic law on the bending samples and kept only where held-out time blo
 (``camera.learn.bending_damping``, ``learning.damping``); the elastic laws are then learned
 without it and the learned rod's R applies it (manifest ``bending_damping``).
 
-From positions, the learned rod is then fitted to its own record by output error
-(``camera.learn.record_fit``, ``learning.record_fit``): the record's start and a warp of the
-bending law, the warp kept only where it forecasts the record's held-out last part better
-(manifest ``record_fit``; every loader of the directory applies a kept warp).
+The learned rod is then fitted to its own record by output error (``camera.learn.record_fit``,
+``learning.record_fit``): from positions the record's start, from the full state its recorded
+start as it is; the size of a kept damping (which the regression underestimates, and which a
+bending law left nominal biases); and a warp of the bending law, kept only where it forecasts
+the record's held-out last part better (manifest ``record_fit``, ``bending_damping.coefficient``;
+every loader of the directory applies a kept warp and the fitted c; ``laws.parquet`` shows the
+warped law, with the warp's coefficient covariance in its band, also where the bending law
+itself is the nominal one).
 """
 
 from __future__ import annotations
@@ -75,7 +79,7 @@ from crgpr.learning.nominal import (
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.record_fit import RecordFit, fit_record
-from crgpr.learning.warp import BendingWarp, Warp, manifest_warp
+from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
@@ -224,6 +228,9 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           f"{OBJ_M_FEATURES}")
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
+    if int(cam["rest_degree_max"]) < int(cam["rest_degree"]):
+        raise ConfigError(f"camera.learn.rest_degree_max: {cam['rest_degree_max']} is below "
+                          f"camera.learn.rest_degree ({cam['rest_degree']})")
     odd, sym = None, cam["bending_symmetry"]
     if sym in ("odd", "auto") and features == "objective" and bend != ["kappa"]:
         raise ConfigError(f"camera.learn.bending_symmetry: {sym} needs camera.learn.bending_inputs: [kappa]")
@@ -271,7 +278,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         n_seg = int(np.count_nonzero(masks["obj_m"]))
         groups = np.tile(np.arange(n_seg), Xm.shape[0] // n_seg) if along_s["used"] else None
         rest = rest_state(Xm[:, 0], ym, int(cam["rest_degree"]), int(cam["rest_blocks"]), groups,
-                          float(params.kappa0))
+                          float(params.kappa0), int(cam["rest_degree_max"]))
         odd = rest.mirror_about(float(params.kappa0), estimate=not along_s["used"])
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -286,18 +293,22 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                   odd_about=odd if name == "obj_m" else None,
                                   arclength=name == "obj_m" and along_s["used"])
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
-    if damping is not None and damping.kept:
+    record_fit = features == "objective" and cam["record_fit"]["mode"] == "auto"
+    if damping is not None and damping.kept and not record_fit:  # else the record fit sizes c (with the law)
         rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
     fit = None
-    if kind == "positions" and features == "objective" and cam["record_fit"]["mode"] == "auto":
+    if record_fit:
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
         fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
                           float(np.max(np.abs(kappa - center))),
-                          0.0 if damping is None else damping.coefficient)
+                          0.0 if damping is None else damping.coefficient, kind == "full_state")
+        if damping is not None and damping.kept:
+            damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
-                       None if fit is None else manifest_warp(fit.to_dict()))
+                       None if fit is None else manifest_warp(fit.to_dict()),
+                       None if fit is None else manifest_warp_cov(fit.to_dict()))
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -331,17 +342,18 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
-                center: float, kappa_scale: float, damping: float) -> RecordFit:
-    """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (bending
-    damping c kept fixed) on the derived training record ``arr``."""
+                center: float, kappa_scale: float, damping: float, exact_start: bool) -> RecordFit:
+    """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
+    the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
+    full state: ``exact_start``)."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
 
-    def law_rod(W: np.ndarray) -> LearnedRod:
+    def law_rod(W: np.ndarray, c: float) -> LearnedRod:
         return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W)},
-                          "objective", params, None, damping)
+                          "objective", params, None, c)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      cfg["camera"]["learn"]["record_fit"], inputs, ports)
+                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start)
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:
@@ -354,7 +366,7 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
-                warp: Warp | None = None) -> dict[str, Any]:
+                warp: Warp | None = None, warp_cov: np.ndarray | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
     where it has one; returns the manifest's entries (the covered range of every learned
@@ -363,7 +375,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
-    tab = law_tables(out, trained, params, settings, seed, warp)
+    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov)
     if tab.empty:
         return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
     write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "

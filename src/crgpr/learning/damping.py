@@ -21,7 +21,9 @@ dkappa_j/dt = (omega_{j+1} - omega_j) / ds from the angular rates of the trainin
   c = 0. A rod without material
   damping then keeps R = zeta I and its training set, hence its model, is unchanged.
 * the band of c: the delete-a-block jackknife, c +- 1.96 se.
-* refinement by the rollout (``refine_by_rollout``): the regression sees c dkappa/dt only as far
+* refinement by the rollout (``refine_by_rollout``, where ``camera.learn.record_fit`` is off;
+  with it on, the record fit sizes c jointly with the bending law's warp,
+  ``learning.record_fit``): the regression sees c dkappa/dt only as far
   as the targets resolve it. The rod's short-wave bending modes are overdamped and faster
   than any record, and the integrator's exact flow damps them less per step than c dkappa/dt
   of the recorded rates says, so the regression's c falls short of the c that reproduces the
@@ -64,7 +66,7 @@ DAMPING_TORQUE = "damping_torque"  # key of the prefilter arrays booked as a kno
 class DampingFit:
     """The learned bending damping and its decision (JSON-able)."""
 
-    coefficient: float  # c the learned rod uses [N m^2 s]: c_fit where kept, else 0
+    coefficient: float  # c the learned rod uses [N m^2 s] where kept (refined or record-fitted), else 0
     c_fit: float  # c >= 0 of the joint fit to all samples [N m^2 s]
     band_lo: float  # c_fit - 1.96 se (delete-a-block jackknife) [N m^2 s]
     band_hi: float  # c_fit + 1.96 se [N m^2 s]
@@ -80,6 +82,7 @@ class DampingFit:
     c_refined: float | None = None  # c of the rollout refinement [N m^2 s] (None: not refined)
     refine_rmse_theta: float | None = None  # its training-record RMSE of theta [rad]
     fit_rmse_theta: float | None = None  # the same RMSE with c_fit [rad]
+    c_record_fit: float | None = None  # c of the record fit (learning.record_fit) [N m^2 s]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -38,7 +38,7 @@ import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
 from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
-from crgpr.learning.warp import Warp, warp_factor
+from crgpr.learning.warp import Warp, warp_factor, warp_sd
 from crgpr.physics.params import RodParams
 
 LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
@@ -81,11 +81,13 @@ def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
-              max_points: int, seed: int, s_points: int, band_blocks: int, warp: Warp | None = None
-              ) -> pd.DataFrame:
+              max_points: int, seed: int, s_points: int, band_blocks: int, warp: Warp | None = None,
+              warp_cov: np.ndarray | None = None) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
     covered_lo, covered_hi, sd_points, sd_scale, at_s. ``warp``: the bending law's record-fit warp
-    (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd."""
+    (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd;
+    ``warp_cov``: its coefficients' covariance, whose sd of the warp adds to the band:
+    sd^2 = (w sd_law)^2 + (m_law sd_w)^2."""
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
@@ -104,9 +106,11 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
                 X[:, js] = sv
             X[:, j] = g
             _, var = sd_gp.predict(X, return_var=True)
+            base = _mean(stem, X)
+            sd = _warped_sd(base, np.sqrt(np.asarray(var, dtype=float).ravel()), X[:, features.index("kappa")]
+                            if "kappa" in features else None, warp, warp_cov)
             w = 1.0 if warp is None else warp_factor(X[:, features.index("kappa")], *warp)
-            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": _mean(stem, X) * w,
-                                      "sd": np.sqrt(np.asarray(var, dtype=float).ravel()) * np.abs(w),
+            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": base * w, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                                       "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
@@ -114,25 +118,54 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     return pd.concat(rows, ignore_index=True)
 
 
+def _warped_sd(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Warp | None,
+               warp_cov: np.ndarray | None) -> np.ndarray:
+    """The sd of m w: |w| sd without the warp's covariance, sqrt((w sd)^2 + (m sd_w)^2) with it."""
+    if warp is None or kappa is None:
+        return sd
+    w = warp_factor(kappa, *warp)
+    if warp_cov is None:
+        return sd * np.abs(w)
+    return np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, warp[0], warp[1], warp_cov)) ** 2)
+
+
+def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float
+                         ) -> pd.DataFrame:
+    """The table of a nominal bending law EI (kappa - kappa0) that the record fit warped
+    (``law_table``'s columns; input kappa, covered range the warp's [c - kappa_s, c + kappa_s]):
+    mean m w, sd |m| sd_w (0 without the warp's covariance), sd_points 0, sd_scale 1."""
+    c, ks = float(warp[0]), float(warp[1])
+    lo, hi = c - ks, c + ks
+    g = np.linspace(lo - pad * (hi - lo), hi + pad * (hi - lo), n_grid)
+    m = params.EI * (g - params.kappa0)
+    return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": m * warp_factor(g, *warp),
+                         "sd": _warped_sd(m, np.zeros_like(m), g, warp, warp_cov), "nominal": m,
+                         "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
+                         "sd_points": 0, "sd_scale": 1.0, "at_s": np.nan})
+
+
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
-               seed: int, warp: Warp | None = None) -> pd.DataFrame:
+               seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
     ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``: the
     bending law's record-fit warp, ``law_table``)."""
     out = []
+    if warp is not None and "obj_m" not in trained:
+        out.append(warped_nominal_table(params, warp, warp_cov, int(settings["n_grid"]),
+                                        float(settings["pad"])))
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
                              float(settings["pad"]), int(settings["max_points"]), seed,
                              int(settings["s_points"]), int(settings["band_blocks"]),
-                             warp if name == "obj_m" else None))
+                             warp if name == "obj_m" else None, warp_cov if name == "obj_m" else None))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
 
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
-                            max_points: int, seed: int, band_blocks: int, warp: Warp | None = None
-                            ) -> tuple[np.ndarray, np.ndarray]:
+                            max_points: int, seed: int, band_blocks: int, warp: Warp | None = None,
+                            warp_cov: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
@@ -145,8 +178,8 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     N = params.N
     w = np.ones((kappa.size, 1)) if warp is None else warp_factor(kappa, *warp)[:, None]
     if "obj_m" not in trained:
-        m = params.EI * (kappa - params.kappa0)
-        return np.repeat(m[:, None], N, axis=1) * w, np.zeros((kappa.size, N))
+        m = np.repeat((params.EI * (kappa - params.kappa0))[:, None], N, axis=1)
+        return m * w, _warped_sd(m, np.zeros_like(m), kappa[:, None], warp, warp_cov)
     stem = Path(model_dir) / "obj_m"
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
@@ -164,4 +197,4 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:] = mean[:, [j]], sd[:, [j]]
             break
-    return mean * w, sd * np.abs(w)
+    return mean * w, _warped_sd(mean, sd, kappa[:, None], warp, warp_cov)

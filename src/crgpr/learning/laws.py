@@ -26,6 +26,10 @@ rest curvature and the symmetry are decided from the samples (kappa_i, m_i) of t
   apart. Contiguous blocks, not single samples: the
   samples of one trajectory are correlated in time, so a per-sample criterion (BIC) would take
   any small asymmetry of one record for a law.
+* the degree D: the configured one, raised by 2 (up to a maximum) while the next odd law, about
+  its own c, predicts the held-out blocks better (``select_degree``, ``pooled_gain``): a strongly
+  stiffening law is far from its cubic at the record's largest curvatures, and the cubic's
+  misfit there moves c;
 * the band of c: the delete-a-block jackknife over the same blocks, c +- 1.96 se (95 %).
 * the nominal rest curvature kappa0 (where given): the odd law about kappa0 against the odd law
   about each held-out fit's own c, on the same blocks and by the same rule. The jackknife band
@@ -70,6 +74,7 @@ class RestState:
     heldout_log_ratio_nominal: float | None = None  # mean over blocks of log(about kappa0 / about c) [-]
     heldout_log_ratio_nominal_se: float | None = None  # its standard error over the blocks [-]
     nominal_rejected: bool | None = None  # the odd law about c predicts consistently better than about kappa0
+    degree_steps: list | None = None  # the higher degrees tried (select_degree): degree, log ratio, se, taken
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -191,28 +196,66 @@ def _general_design(kappa: np.ndarray, center: float, scale: float, degree: int)
     return np.stack([u**k for k in range(degree + 1)], axis=-1)
 
 
+def _fits_blocks(n: int, rows: list[np.ndarray], degree: int, blocks: int) -> bool:
+    """Enough samples for every held-out fit of the odd law (2 D + 2 coefficients) in every group."""
+    return blocks >= 2 and n >= blocks * (2 * degree + 3) and min(r.size for r in rows) >= 4 * (degree + 1)
+
+
+def select_degree(kappa: np.ndarray, m: np.ndarray, degree: int, max_degree: int, blocks: int,
+                  rows: list[np.ndarray], scale: float) -> tuple[int, list[dict[str, float]]]:
+    """The odd degree D of the law c is fitted with: ``degree``, raised by 2 while the odd law of
+    the next degree (about its own c) predicts the held-out blocks better by ``pooled_gain`` (a
+    strongly nonlinear law differs from its cubic stand-in where the record reaches large
+    curvatures, and there the cubic's misfit moves c), up to ``max_degree``. Returns D and the
+    steps tried (degree, log ratio, se, taken)."""
+    masks = heldout_blocks(kappa.size, blocks)
+
+    def errors(d: int) -> np.ndarray:
+        c = _odd_fit(kappa, m, d, scale, rows)
+        return np.array([_heldout_error(kappa, m, ~t, t, lambda k, c=c: _odd_design((k - c) / scale, d), rows)
+                         for t in masks])
+    steps: list[dict[str, float]] = []
+    e = errors(degree)
+    while degree + 2 <= max_degree and _fits_blocks(kappa.size, rows, degree + 2, blocks):
+        e_next = errors(degree + 2)
+        ratio, se, better = pooled_gain(e, e_next)
+        steps.append({"degree": degree + 2, "heldout_log_ratio": ratio, "heldout_log_ratio_se": se,
+                      "taken": bool(better)})
+        if not better:
+            break
+        degree, e = degree + 2, e_next
+    return degree, steps
+
+
 def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
-               groups: np.ndarray | None = None, kappa0: float | None = None) -> RestState:
+               groups: np.ndarray | None = None, kappa0: float | None = None,
+               max_degree: int | None = None) -> RestState:
     """Rest curvature, its 95 % band and the symmetry decision from law samples (see module doc).
 
     ``kappa``, ``m``: (n,) curvature inputs and bending-moment targets, rows in time order;
     ``degree``: D, the odd degree of the law c is fitted with and the degree of the general law
-    (the odd law it is compared with has degree 2 D + 1); ``blocks``: contiguous held-out blocks
-    (>= 2); ``groups``: (n,) labels of samples that share a law (the segments of a law that
-    varies along the rod): each group has coefficients of its own, all share one rest curvature c;
-    ``kappa0``: the nominal rest curvature, compared on the held-out blocks with c (module doc).
+    (the odd law it is compared with has degree 2 D + 1), raised up to ``max_degree`` where
+    held-out blocks support it (``select_degree``; None: D as given); ``blocks``: contiguous
+    held-out blocks (>= 2); ``groups``: (n,) labels of samples that share a law (the segments of
+    a law that varies along the rod): each group has coefficients of its own, all share one rest
+    curvature c; ``kappa0``: the nominal rest curvature, compared on the held-out blocks with c
+    (module doc).
     """
     kappa = np.asarray(kappa, dtype=float).ravel()
     m = np.asarray(m, dtype=float).ravel()
-    if degree < 1 or degree % 2 == 0:
-        raise ValueError(f"rest_state: degree {degree} must be odd and >= 1")
+    bad_max = max_degree is not None and (max_degree < degree or max_degree % 2 == 0)
+    if degree < 1 or degree % 2 == 0 or bad_max:
+        raise ValueError(f"rest_state: degree {degree} (max {max_degree}) must be odd and >= 1")
     rows = _group_rows(None if groups is None else np.asarray(groups).ravel(), kappa.size)
     # enough samples for every held-out fit of the odd law (2 D + 2 coefficients) in every group
-    if blocks < 2 or kappa.size < blocks * (2 * degree + 3) or min(r.size for r in rows) < 4 * (degree + 1):
+    if not _fits_blocks(kappa.size, rows, degree, blocks):
         raise ValueError(f"rest_state: {kappa.size} samples cannot fill {blocks} blocks of a degree-{degree} "
                          "law" + ("" if groups is None else f" in each of {len(rows)} groups"))
     center = float(kappa.mean())
     scale = float(kappa.std()) or 1.0
+    steps: list[dict[str, float]] = []
+    if max_degree is not None:
+        degree, steps = select_degree(kappa, m, degree, max_degree, blocks, rows, scale)
     c = _odd_fit(kappa, m, degree, scale, rows)
     cs, diff, d_nom, e_odd, e_gen, e_nom = [], [], [], 0.0, 0.0, 0.0
     for test in heldout_blocks(kappa.size, blocks):
@@ -243,7 +286,8 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
     return RestState(kappa_rest=c, band_lo=c - Z95 * se, band_hi=c + Z95 * se, se=se,
                      heldout_mse_odd=mse_odd, heldout_mse_general=mse_gen,
                      heldout_log_ratio=mean, heldout_log_ratio_se=ratio_se,
-                     symmetric=not general, degree=int(degree), blocks=int(blocks), **nominal)
+                     symmetric=not general, degree=int(degree), blocks=int(blocks), degree_steps=steps,
+                     **nominal)
 
 
 def _subset_rows(rows: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:

@@ -15,13 +15,21 @@ Parameters (``RecordFit``):
   u = (kappa - c) / kappa_s clipped to [-1, 1]; c the law's centre (the point it is mirrored
   about, else the nominal kappa0), kappa_s the largest |kappa - c| of its training samples. Even
   in u, so the law keeps its symmetry about c; multiplicative, so m(c) = 0 is kept; constant
-  beyond the covered range, where the record says nothing of it (``BendingWarp``);
-* the record's initial state: the derived angles theta_0(s) and rates omega_0(s) at its first
-  kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero at the clamp); positions and
-  velocities are rebuilt from them at the nominal strains nu^0 from the clamped base
-  (``start_state``). The derived positions' strain noise would otherwise start stretch and shear
-  oscillations that the record does not have, and the derived rates are least certain at the
-  record's start, where its time derivatives are end-affected.
+  beyond the covered range, where the record says nothing of it (``BendingWarp``); admissible
+  only where w > 0 on the covered range (``warp.admissible``: the law keeps its sign where few
+  samples constrain the warp);
+* the record's initial state, from positions (camera data): the derived angles theta_0(s) and
+  rates omega_0(s) at its first kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero
+  at the clamp); positions and velocities are rebuilt from them at the nominal strains nu^0 from
+  the clamped base (``start_state``). The derived positions' strain noise would otherwise start
+  stretch and shear oscillations that the record does not have, and the derived rates are least
+  certain at the record's start, where its time derivatives are end-affected. From the full
+  state the record's first state is exact and is used as it is (J = 0);
+* where a bending damping c is kept (``learning.damping``), its size: c exp(d). Its regression
+  and rollout refinement are made with the bending law as it was learned from targets that
+  still held the rest of the damping, and a law left nominal biases the refined c (a stiffening
+  rod's extra restoring moment read as less damping); fitted jointly, both are judged by the
+  motion. Rows of a batch with different c run as separate batches (one c per rollout).
 
 Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
 at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
@@ -29,7 +37,8 @@ at the record's frames, the Jacobian by forward differences, each evaluation one
 the warp are fitted on the first 1 - f of the record and compared on its last f, cut into
 ``blocks`` contiguous blocks (``laws.consistent_gain``: the warp is kept only where it forecasts
 the held-out blocks consistently better); a kept warp is then refitted on the whole record.
-Otherwise the law stays as the regression learned it.
+Otherwise the law stays as the regression learned it. The damping's size is free in both fits
+(the damping itself was decided by its own held-out blocks); the fit that is kept sets it.
 """
 
 from __future__ import annotations
@@ -44,6 +53,7 @@ import numpy as np
 
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
+from crgpr.learning.warp import admissible
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
@@ -59,7 +69,8 @@ class RecordFit:
     coefficients (all zero where it was not kept), the start's mode coefficients, the RMSE of
     theta over the record [rad] as learned (from the derived start), with the fitted start alone
     and after the fit, the held-out comparison (mean and se of the per-block log error ratio,
-    start alone over start and warp) and the fit's wall time [s]."""
+    start alone over start and warp), the fit's wall time [s] and the bending damping before
+    and after it."""
 
     kept: bool
     center: float
@@ -73,6 +84,10 @@ class RecordFit:
     heldout_log_ratio_se: float
     note: str
     seconds: float
+    damping: float = 0.0  # the bending damping c after the fit [N m^2 s] (0: none kept)
+    damping_before: float = 0.0  # c as it came in (the damping's regression and refinement) [N m^2 s]
+    exact_start: bool = False  # the record's first state used as it is (full state), no start modes
+    coefficient_cov: list[list[float]] | None = None  # a kept warp's coefficient covariance (warp_covariance)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -103,35 +118,60 @@ def start_state(arr: dict[str, np.ndarray], params: RodParams, b: np.ndarray, mo
     return q, p
 
 
-def record_residuals(model_for: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.ndarray],
+def recorded_start(arr: dict[str, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The record's first state as it is (full state), q and p (n, N+1, 3) for n rods."""
+    q = np.stack([arr["x"][0], arr["y"][0], arr["theta"][0]], axis=-1)
+    p = np.stack([arr["p_x"][0], arr["p_y"][0], arr["p_theta"][0]], axis=-1)
+    return np.repeat(q[None], n, axis=0), np.repeat(p[None], n, axis=0)
+
+
+def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
                      params: RodParams, settings: SimSettings, modes: int, n_frames: int,
+                     damping: float = 0.0, exact_start: bool = False,
                      inputs: Inputs | None = None, ports: Ports | None = None
                      ) -> Callable[[np.ndarray], np.ndarray | None]:
     """A -> residuals (B, n_frames x N) of theta at the free nodes over the record's first
-    ``n_frames`` frames, for parameter rows A (B, 2 J + K): start corrections then warp
-    coefficients (``model_for(A[:, 2J:])``: the learned rod of those warps); None where any rod
-    of the batch leaves the physical range."""
+    ``n_frames`` frames, for parameter rows A (B, 2 J + D + K): start corrections (none with
+    ``exact_start``: the recorded first state), the damping's log factor d (D = 1 where
+    ``damping`` c > 0: the rod's c exp(d)), then warp coefficients (``model_for(W, c)``: the
+    learned rod of warps W (B', K) and damping c); None where any rod leaves the physical range."""
     t, theta = arr["t"][:n_frames], arr["theta"][:n_frames, 1:]
     st = replace(record_settings(settings, arr["t"]), t_end=float(t[-1] - t[0]))
+    nd = int(damping > 0)
+    j0 = 0 if exact_start else 2 * modes
 
     def residuals(A: np.ndarray) -> np.ndarray | None:
-        q0, p0 = start_state(arr, params, A[:, :2 * modes], modes)
-        try:
-            tr = rollout(model_for(A[:, 2 * modes:]), math.nan, st, "record fit", n_batch=A.shape[0],
-                         inputs=inputs, ports=ports, initial=(q0, p0, float(t[0])))
-        except SimulationDiverged:
+        if not admissible(A[:, j0 + nd:]).all():  # a warp that reverses the law
             return None
-        return (free_angles_at(tr, t) - theta[:, None]).transpose(1, 0, 2).reshape(A.shape[0], -1)
+        q0, p0 = (recorded_start(arr, A.shape[0]) if exact_start
+                  else start_state(arr, params, A[:, :j0], modes))
+        c = damping * np.exp(A[:, j0]) if nd else np.full(A.shape[0], damping)
+        out = np.empty((A.shape[0], theta.size))
+        for cv in np.unique(c):
+            rows = np.flatnonzero(c == cv)
+            try:
+                tr = rollout(model_for(A[rows, j0 + nd:], float(cv)), math.nan, st, "record fit",
+                             n_batch=rows.size, inputs=inputs, ports=ports,
+                             initial=(q0[rows], p0[rows], float(t[0])))
+            except SimulationDiverged:
+                return None
+            out[rows] = (free_angles_at(tr, t) - theta[:, None]).transpose(1, 0, 2).reshape(rows.size, -1)
+        return out
     return residuals
 
 
 def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray,
-                        free: np.ndarray, iterations: int) -> tuple[np.ndarray, float]:
+                        free: np.ndarray, iterations: int, final: dict[str, np.ndarray] | None = None
+                        ) -> tuple[np.ndarray, float]:
     """Minimise mean(r^2) over the parameters where ``free`` (bool, like a0), the others held at
     a0: Levenberg-Marquardt with forward-difference Jacobians, each evaluation (a point and its
     perturbations) one call of ``residuals``. Returns (parameters, RMS residual); the start's
-    RMS is inf where the first evaluation diverges."""
+    RMS is inf where the first evaluation diverges. ``final`` (a dict) receives the residuals
+    ``r`` and the Jacobian ``J`` (columns: the free parameters) at the returned point."""
     idx = np.flatnonzero(free)
+    if idx.size == 0:
+        r = residuals(np.asarray(a0, dtype=float)[None])
+        return np.asarray(a0, dtype=float).copy(), math.inf if r is None else math.sqrt(float(np.mean(r**2)))
 
     def evaluate(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         A = np.repeat(a[None], idx.size + 1, axis=0)
@@ -160,7 +200,36 @@ def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0
         a, (r, J), cost, lam = trial, ev, float(np.mean(ev[0] ** 2)), lam / 3.0
         if gain < 1e-4 * cost:
             break
+    if final is not None:
+        final.update(r=r, J=J)
     return a, math.sqrt(cost)
+
+
+def correlation_time(R: np.ndarray, axis: int) -> float:
+    """Integrated autocorrelation time 1 + 2 sum_k rho_k of the residuals R (frames, nodes) along
+    ``axis`` (lags until the first non-positive autocorrelation; averaged over the other axis)."""
+    Rc = np.moveaxis(R - R.mean(axis=axis, keepdims=True), axis, 0)
+    var = float(np.mean(Rc**2))
+    tau = 1.0
+    for k in range(1, Rc.shape[0] // 2):
+        rho = float(np.mean(Rc[k:] * Rc[:-k])) / var if var > 0 else 0.0
+        if rho <= 0.0:
+            break
+        tau += 2.0 * rho
+    return tau
+
+
+def warp_covariance(r: np.ndarray, J: np.ndarray, n_frames: int, K: int) -> np.ndarray:
+    """Covariance (K, K) of the warp coefficients (the last K columns of J) of a least-squares fit
+    with residuals r (frames x nodes, time-major) and Jacobian J: s^2 (J^T J)^-1, s^2 the residual
+    variance, times the residuals' correlation times along the record and along the rod (an
+    effective number of independent residuals; the Gauss-Newton covariance alone would count
+    every frame and node as independent)."""
+    R = np.asarray(r, dtype=float).reshape(n_frames, -1)
+    s2 = float(np.sum(R**2)) / max(R.size - J.shape[1], 1)
+    inflate = correlation_time(R, 0) * correlation_time(R, 1)
+    C = s2 * inflate * np.linalg.pinv(J.T @ J)
+    return C[-K:, -K:]
 
 
 def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float, float, bool]:
@@ -171,16 +240,21 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
     return consistent_gain(d)
 
 
-def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.ndarray], params: RodParams,
-               settings: SimSettings, center: float, kappa_scale: float, cfg: dict[str, Any],
-               inputs: Inputs | None = None, ports: Ports | None = None) -> RecordFit:
-    """The module's fit and decision on the derived training record ``arr`` (``positions_to_state``
-    arrays, time-major; its first ``max_record_s`` seconds); ``law_rod(W)`` is the learned rod with
-    warp coefficients W (B, K) (``BendingWarp`` of its bending law); ``cfg``: config
-    ``camera.learn.record_fit``. A record whose held-out part has fewer than two frames per
-    block keeps the law as learned."""
+def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
+               params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
+               cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
+               damping: float = 0.0, exact_start: bool = False) -> RecordFit:
+    """The module's fit and decision on the training record ``arr`` (prefilter or
+    ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
+    ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K) (``BendingWarp`` of its
+    bending law) and bending damping c; ``damping``: the kept damping's c (0: none, not fitted);
+    ``exact_start``: the record holds the full state, its first state is used as it is;
+    ``cfg``: config ``camera.learn.record_fit``. A record whose held-out part has fewer than two
+    frames per block keeps the law as learned."""
     t_start = time.perf_counter()
-    J, K, blocks = int(cfg["start_modes"]), int(cfg["warp_terms"]), int(cfg["blocks"])
+    J = 0 if exact_start else int(cfg["start_modes"])
+    K, blocks = int(cfg["warp_terms"]), int(cfg["blocks"])
+    nd = int(damping > 0)
     within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
     arr = {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
            for k, v in arr.items()}
@@ -189,23 +263,32 @@ def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.nd
     if n_fit < 3 or n_t - n_fit < 2 * blocks:
         return RecordFit(False, float(center), float(kappa_scale), [0.0] * K, [0.0] * (2 * J), math.nan,
                          math.nan, math.nan, math.nan, math.nan,
-                         f"record too short to decide: {n_t} frames", time.perf_counter() - t_start)
-    full = record_residuals(law_rod, arr, params, settings, J, n_t, inputs, ports)
-    part = record_residuals(law_rod, arr, params, settings, J, n_fit, inputs, ports)
-    zero = np.zeros(2 * J + K)
-    r0 = full(zero[None])
-    learned = math.inf if r0 is None else float(np.sqrt(np.mean(r0**2)))
-    start_free = np.arange(2 * J + K) < 2 * J
-    a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
-    a_warp, _ = levenberg_marquardt(part, a_start, np.ones(2 * J + K, dtype=bool), iters)
+                         f"record too short to decide: {n_t} frames", time.perf_counter() - t_start,
+                         float(damping), float(damping), bool(exact_start))
+    full = record_residuals(law_rod, arr, params, settings, J, n_t, damping, exact_start, inputs, ports)
+    part = record_residuals(law_rod, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
+    n_a = 2 * J + nd + K
+    zero = np.zeros(n_a)
+    start_free = np.arange(n_a) < 2 * J + nd
+    if start_free.any():
+        r0 = full(zero[None])
+        learned = math.inf if r0 is None else float(np.sqrt(np.mean(r0**2)))
+        a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
+    else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
+        learned, a_start = math.nan, zero
+    a_warp, _ = levenberg_marquardt(part, a_start, np.ones(n_a, dtype=bool), iters)
     both = full(np.stack([a_start, a_warp]))
+    if both is not None and not start_free.any():
+        learned = float(np.sqrt(np.mean(both[0] ** 2)))
 
     def result(kept: bool, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float,
                note: str) -> RecordFit:
         return RecordFit(kept, float(center), float(kappa_scale),
-                         [float(v) for v in (a[2 * J:] if kept else np.zeros(K))],
+                         [float(v) for v in (a[2 * J + nd:] if kept else np.zeros(K))],
                          [float(v) for v in a[:2 * J]], learned, start_only, fitted, ratio, se, note,
-                         time.perf_counter() - t_start)
+                         time.perf_counter() - t_start,
+                         float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
+                         bool(exact_start))
     if both is None:
         return result(False, zero, math.inf, learned, math.nan, math.nan,
                       "a fitted rod left the physical range")
@@ -215,6 +298,9 @@ def fit_record(law_rod: Callable[[np.ndarray], LearnedRod], arr: dict[str, np.nd
     if not better:
         return result(False, a_start, start_only, start_only, ratio, se,
                       "the warp does not forecast the held-out blocks consistently better")
-    a, rms = levenberg_marquardt(full, a_warp, np.ones(2 * J + K, dtype=bool), iters)
-    return result(True, a, start_only, rms, ratio, se,
+    last: dict[str, np.ndarray] = {}
+    a, rms = levenberg_marquardt(full, a_warp, np.ones(n_a, dtype=bool), iters, last)
+    kept = result(True, a, start_only, rms, ratio, se,
                   "kept: forecasts the held-out blocks consistently better")
+    cov = warp_covariance(last["r"], last["J"], n_t, K) if "J" in last else np.full((K, K), np.nan)
+    return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])

@@ -27,6 +27,24 @@ def warp_factor(kappa: np.ndarray, center: float, scale: float, coefficients: np
     return w
 
 
+def admissible(coefficients: np.ndarray, n_grid: int = 201) -> np.ndarray:
+    """Whether each row of warp coefficients (B, K) keeps the law's sign: w(u) > 0 for u in
+    [0, 1] (a warp that reverses the law where few samples constrain it, at the edge of the
+    covered range, is refused)."""
+    a = np.atleast_2d(np.asarray(coefficients, dtype=float))
+    u = np.linspace(0.0, 1.0, n_grid)
+    return np.all(1.0 + a @ np.stack([u ** (2 * k) for k in range(a.shape[1])]) > 0.0, axis=1)
+
+
+def warp_sd(kappa: np.ndarray, center: float, scale: float, cov: np.ndarray) -> np.ndarray:
+    """The sd of w(kappa) from the covariance ``cov`` (K, K) of its coefficients (the record
+    fit's ``coefficient_cov``): sqrt(g^T cov g), g_k = u^(2k) as in ``warp_factor``."""
+    C = np.asarray(cov, dtype=float)
+    u2 = np.minimum(((np.asarray(kappa, dtype=float) - center) / scale) ** 2, 1.0)
+    g = np.stack([u2**k for k in range(C.shape[0])], axis=-1)
+    return np.sqrt(np.maximum(np.einsum("...k,kl,...l->...", g, C, g), 0.0))
+
+
 class BendingWarp:
     """A bending-law component (``learned.Component``, objective features: column 0 is kappa)
     times ``warp_factor``; coefficients (B, K) warp member b of a batched rollout by row b. A
@@ -51,3 +69,11 @@ def manifest_warp(record_fit: dict[str, Any] | None) -> Warp | None:
         return None
     return (float(record_fit["center"]), float(record_fit["kappa_scale"]),
             np.asarray(record_fit["coefficients"], dtype=float))
+
+
+def manifest_warp_cov(record_fit: dict[str, Any] | None) -> np.ndarray | None:
+    """The covariance of a manifest's kept warp's coefficients, else None (none kept, or a
+    manifest written before the record fit recorded it)."""
+    if manifest_warp(record_fit) is None or record_fit.get("coefficient_cov") is None:
+        return None
+    return np.asarray(record_fit["coefficient_cov"], dtype=float)
