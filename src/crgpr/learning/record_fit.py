@@ -15,8 +15,8 @@ Parameters (``RecordFit``):
   u = (kappa - c) / kappa_s clipped to [-1, 1]; c the law's centre (the point it is mirrored
   about, else the nominal kappa0), kappa_s the largest |kappa - c| of its training samples. Even
   in u, so the law keeps its symmetry about c; multiplicative, so m(c) = 0 is kept; constant
-  beyond the covered range, where the record says nothing of it (``BendingWarp``); admissible
-  only where w > 0 on the covered range (``warp.admissible``: the law keeps its sign where few
+  beyond the covered range, where the record says nothing of it (``BendingWarp``); kept only
+  where w > 0 on the covered range (``warp.admissible``: the law keeps its sign where few
   samples constrain the warp);
 * the record's initial state, from positions (camera data): the derived angles theta_0(s) and
   rates omega_0(s) at its first kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero
@@ -141,8 +141,6 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
     j0 = 0 if exact_start else 2 * modes
 
     def residuals(A: np.ndarray) -> np.ndarray | None:
-        if not admissible(A[:, j0 + nd:]).all():  # a warp that reverses the law
-            return None
         q0, p0 = (recorded_start(arr, A.shape[0]) if exact_start
                   else start_state(arr, params, A[:, :j0], modes))
         c = damping * np.exp(A[:, j0]) if nd else np.full(A.shape[0], damping)
@@ -300,6 +298,9 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                       "the warp does not forecast the held-out blocks consistently better")
     last: dict[str, np.ndarray] = {}
     a, rms = levenberg_marquardt(full, a_warp, np.ones(n_a, dtype=bool), iters, last)
+    if not admissible(a[2 * J + nd:])[0]:  # the law reversed where few samples constrain the warp
+        return result(False, a_start, start_only, start_only, ratio, se,
+                      "the fitted warp reverses the law within the covered range (w <= 0): not kept")
     kept = result(True, a, start_only, rms, ratio, se,
                   "kept: forecasts the held-out blocks consistently better")
     cov = warp_covariance(last["r"], last["J"], n_t, K) if "J" in last else np.full((K, K), np.nan)
