@@ -29,7 +29,7 @@ rule actuated_data:
         "benchmarks/actuated/data_{signal}.tsv"
     threads: 1
     resources:
-        mem_mb=500,
+        mem_mb=750,
         runtime=5,
     conda:
         ENV
