@@ -106,11 +106,9 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
                 X[:, js] = sv
             X[:, j] = g
             _, var = sd_gp.predict(X, return_var=True)
-            base = _mean(stem, X)
-            sd = _warped_sd(base, np.sqrt(np.asarray(var, dtype=float).ravel()), X[:, features.index("kappa")]
-                            if "kappa" in features else None, warp, warp_cov)
-            w = 1.0 if warp is None else warp_factor(X[:, features.index("kappa")], *warp)
-            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": base * w, "sd": sd,
+            mean, sd = _warped(_mean(stem, X), np.sqrt(np.asarray(var, dtype=float).ravel()),
+                               None if warp is None else X[:, features.index("kappa")], warp, warp_cov)
+            rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": mean, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                                       "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
@@ -118,15 +116,17 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     return pd.concat(rows, ignore_index=True)
 
 
-def _warped_sd(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Warp | None,
-               warp_cov: np.ndarray | None) -> np.ndarray:
-    """The sd of m w: |w| sd without the warp's covariance, sqrt((w sd)^2 + (m sd_w)^2) with it."""
-    if warp is None or kappa is None:
-        return sd
+def _warped(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Warp | None,
+            warp_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and sd of a law m (mean, sd at the curvatures ``kappa``) times its record-fit ``warp``
+    w: m w and |w| sd, or sqrt((w sd)^2 + (m sd_w)^2) with the warp's coefficient covariance;
+    unchanged without a warp."""
+    if warp is None:
+        return mean, sd
     w = warp_factor(kappa, *warp)
     if warp_cov is None:
-        return sd * np.abs(w)
-    return np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, warp[0], warp[1], warp_cov)) ** 2)
+        return mean * w, sd * np.abs(w)
+    return mean * w, np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, warp[0], warp[1], warp_cov)) ** 2)
 
 
 def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float
@@ -138,8 +138,8 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
     lo, hi = c - ks, c + ks
     g = np.linspace(lo - pad * (hi - lo), hi + pad * (hi - lo), n_grid)
     m = params.EI * (g - params.kappa0)
-    return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": m * warp_factor(g, *warp),
-                         "sd": _warped_sd(m, np.zeros_like(m), g, warp, warp_cov), "nominal": m,
+    mean, sd = _warped(m, np.zeros_like(m), g, warp, warp_cov)
+    return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": mean, "sd": sd, "nominal": m,
                          "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                          "sd_points": 0, "sd_scale": 1.0, "at_s": np.nan})
 
@@ -147,8 +147,9 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
                seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
-    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``: the
-    bending law's record-fit warp, ``law_table``)."""
+    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``,
+    ``warp_cov``: the bending law's record-fit warp and its coefficient covariance, ``law_table``;
+    a bending law left nominal but warped is tabulated by ``warped_nominal_table``)."""
     out = []
     if warp is not None and "obj_m" not in trained:
         out.append(warped_nominal_table(params, warp, warp_cov, int(settings["n_grid"]),
@@ -176,10 +177,9 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
 
     kappa = np.asarray(kappa, dtype=float).ravel()
     N = params.N
-    w = np.ones((kappa.size, 1)) if warp is None else warp_factor(kappa, *warp)[:, None]
     if "obj_m" not in trained:
         m = np.repeat((params.EI * (kappa - params.kappa0))[:, None], N, axis=1)
-        return m * w, _warped_sd(m, np.zeros_like(m), kappa[:, None], warp, warp_cov)
+        return _warped(m, np.zeros_like(m), kappa[:, None], warp, warp_cov)
     stem = Path(model_dir) / "obj_m"
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
@@ -197,4 +197,4 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:] = mean[:, [j]], sd[:, [j]]
             break
-    return mean * w, _warped_sd(mean, sd, kappa[:, None], warp, warp_cov)
+    return _warped(mean, sd, kappa[:, None], warp, warp_cov)

@@ -202,29 +202,30 @@ def _fits_blocks(n: int, rows: list[np.ndarray], degree: int, blocks: int) -> bo
 
 
 def select_degree(kappa: np.ndarray, m: np.ndarray, degree: int, max_degree: int, blocks: int,
-                  rows: list[np.ndarray], scale: float) -> tuple[int, list[dict[str, float]]]:
+                  rows: list[np.ndarray], scale: float) -> tuple[int, float, list[dict[str, float]]]:
     """The odd degree D of the law c is fitted with: ``degree``, raised by 2 while the odd law of
     the next degree (about its own c) predicts the held-out blocks better by ``pooled_gain`` (a
     strongly nonlinear law differs from its cubic stand-in where the record reaches large
-    curvatures, and there the cubic's misfit moves c), up to ``max_degree``. Returns D and the
-    steps tried (degree, log ratio, se, taken)."""
+    curvatures, and there the cubic's misfit moves c), up to ``max_degree``. Returns D, the c of
+    the odd law of degree D fitted to all samples, and the steps tried (degree, log ratio, se,
+    taken)."""
     masks = heldout_blocks(kappa.size, blocks)
 
-    def errors(d: int) -> np.ndarray:
+    def fit(d: int) -> tuple[float, np.ndarray]:
         c = _odd_fit(kappa, m, d, scale, rows)
-        return np.array([_heldout_error(kappa, m, ~t, t, lambda k, c=c: _odd_design((k - c) / scale, d), rows)
-                         for t in masks])
+        return c, np.array([_heldout_error(kappa, m, ~t, t, lambda k: _odd_design((k - c) / scale, d), rows)
+                            for t in masks])
     steps: list[dict[str, float]] = []
-    e = errors(degree)
+    c, e = fit(degree)
     while degree + 2 <= max_degree and _fits_blocks(kappa.size, rows, degree + 2, blocks):
-        e_next = errors(degree + 2)
+        c_next, e_next = fit(degree + 2)
         ratio, se, better = pooled_gain(e, e_next)
         steps.append({"degree": degree + 2, "heldout_log_ratio": ratio, "heldout_log_ratio_se": se,
                       "taken": bool(better)})
         if not better:
             break
-        degree, e = degree + 2, e_next
-    return degree, steps
+        degree, c, e = degree + 2, c_next, e_next
+    return degree, c, steps
 
 
 def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
@@ -255,8 +256,9 @@ def rest_state(kappa: np.ndarray, m: np.ndarray, degree: int, blocks: int,
     scale = float(kappa.std()) or 1.0
     steps: list[dict[str, float]] = []
     if max_degree is not None:
-        degree, steps = select_degree(kappa, m, degree, max_degree, blocks, rows, scale)
-    c = _odd_fit(kappa, m, degree, scale, rows)
+        degree, c, steps = select_degree(kappa, m, degree, max_degree, blocks, rows, scale)
+    else:
+        c = _odd_fit(kappa, m, degree, scale, rows)
     cs, diff, d_nom, e_odd, e_gen, e_nom = [], [], [], 0.0, 0.0, 0.0
     for test in heldout_blocks(kappa.size, blocks):
         cb = _odd_fit(kappa[~test], m[~test], degree, scale, _subset_rows(rows, ~test))

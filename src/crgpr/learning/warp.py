@@ -14,12 +14,17 @@ import numpy as np
 Warp = tuple[float, float, np.ndarray]  # (center c [1/m], kappa scale kappa_s [1/m], coefficients a_k)
 
 
+def _u2(kappa: np.ndarray, center: float, scale: float) -> np.ndarray:
+    """u^2, u = (kappa - center) / scale clipped to [-1, 1]."""
+    return np.minimum(((np.asarray(kappa, dtype=float) - center) / scale) ** 2, 1.0)
+
+
 def warp_factor(kappa: np.ndarray, center: float, scale: float, coefficients: np.ndarray) -> np.ndarray:
     """w(kappa) = 1 + sum_k a_k u^(2k), u = (kappa - center) / scale clipped to [-1, 1] (beyond the
     covered range the warp stays at its edge value: the polynomial is not extrapolated);
     ``coefficients`` (K,) or, for a batch of rods, (B, K) against kappa (B, ...)."""
     a = np.asarray(coefficients, dtype=float)
-    u2 = np.minimum(((np.asarray(kappa, dtype=float) - center) / scale) ** 2, 1.0)
+    u2 = _u2(kappa, center, scale)
     w = np.ones_like(u2)
     for k in range(a.shape[-1]):
         ak = a[..., k] if a.ndim == 1 else a[:, k].reshape((-1,) + (1,) * (u2.ndim - 1))
@@ -32,15 +37,15 @@ def admissible(coefficients: np.ndarray, n_grid: int = 201) -> np.ndarray:
     [0, 1] (a warp that reverses the law where few samples constrain it, at the edge of the
     covered range, is refused)."""
     a = np.atleast_2d(np.asarray(coefficients, dtype=float))
-    u = np.linspace(0.0, 1.0, n_grid)
-    return np.all(1.0 + a @ np.stack([u ** (2 * k) for k in range(a.shape[1])]) > 0.0, axis=1)
+    u = np.broadcast_to(np.linspace(0.0, 1.0, n_grid), (a.shape[0], n_grid))
+    return np.all(warp_factor(u, 0.0, 1.0, a) > 0.0, axis=1)
 
 
 def warp_sd(kappa: np.ndarray, center: float, scale: float, cov: np.ndarray) -> np.ndarray:
     """The sd of w(kappa) from the covariance ``cov`` (K, K) of its coefficients (the record
     fit's ``coefficient_cov``): sqrt(g^T cov g), g_k = u^(2k) as in ``warp_factor``."""
     C = np.asarray(cov, dtype=float)
-    u2 = np.minimum(((np.asarray(kappa, dtype=float) - center) / scale) ** 2, 1.0)
+    u2 = _u2(kappa, center, scale)
     g = np.stack([u2**k for k in range(C.shape[0])], axis=-1)
     return np.sqrt(np.maximum(np.einsum("...k,kl,...l->...", g, C, g), 0.0))
 
