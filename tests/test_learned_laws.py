@@ -14,6 +14,7 @@ from crgpr.commands.learn import learn, load_learned
 from crgpr.config import ConfigError, load_config, validate_schema
 from crgpr.gp import load_model
 from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.extrapolation import TangentContinuation
 from crgpr.learning.gradient_models import subset_keeping_extremes
 from crgpr.learning.laws import rest_state
 from crgpr.physics.params import SimSettings
@@ -230,6 +231,12 @@ def test_learned_law_is_written_as_a_table_and_figure_with_its_covered_range(pre
     assert set(man["law_inputs_covered"]) == set(man["models"])
     # the nominal law beside it is the nominal rod's m = EI (kappa - kappa0), kappa0 = 0
     assert np.allclose(m["nominal"], truth.EI * m["x"])
+    # beyond the covered range: the GP's mean out to its reach, the tangent beyond it, in the
+    # table and in the rod the rollouts integrate (learning.extrapolation)
+    ex = man["bending_extrapolation"]
+    assert ex["lo"] <= lo and ex["hi"] >= hi and (ex["covered_lo"], ex["covered_hi"]) == (lo, hi)
+    assert np.array_equal(m["continued"].to_numpy(), ((m["x"] > ex["hi"]) | (m["x"] < ex["lo"])).to_numpy())
+    assert isinstance(load_learned(d / "auto")[0].components["obj_m"], TangentContinuation)
 
 
 def test_posterior_sd_of_a_learned_law_grows_beyond_its_covered_range(precurved_models):

@@ -29,7 +29,10 @@ and the seeds, so that ``crgpr rollout --models MODEL_DIR`` needs no method entr
 The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: auto``) are
 estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
 the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
-``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``).
+``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``). Beyond its
+covered curvatures the bending law is the GP's mean while its band stays narrow and its tangent
+beyond that (``camera.learn.extrapolation``, ``learning.extrapolation``; manifest
+``bending_extrapolation``).
 
 A passive bending damping m_d = c dkappa/dt, c >= 0 (a viscoelastic rod's), is fitted jointly
 with an elastic law on the bending samples and kept only where held-out time blocks support it
@@ -65,6 +68,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
+from crgpr.learning.extrapolation import TangentContinuation, continue_table, law_reach, manifest_reach
 from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box
@@ -308,7 +312,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
                        None if fit is None else manifest_warp(fit.to_dict()),
-                       None if fit is None else manifest_warp_cov(fit.to_dict()))
+                       None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"])
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -366,23 +370,30 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
 
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
-                warp: Warp | None = None, warp_cov: np.ndarray | None = None) -> dict[str, Any]:
+                warp: Warp | None = None, warp_cov: np.ndarray | None = None,
+                extrapolation: dict[str, Any] | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
-    where it has one; returns the manifest's entries (the covered range of every learned
-    model's inputs, the file names)."""
+    where it has one, continued by its tangent beyond its reach (``learning.extrapolation``,
+    ``extrapolation`` = config ``camera.learn.extrapolation``); returns the manifest's entries
+    (the covered range of every learned model's inputs, the bending law's reach, the file names)."""
     from crgpr.report.laws import law_figure
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
     tab = law_tables(out, trained, params, settings, seed, warp, warp_cov)
+    reach = None
+    if "obj_m" in trained and extrapolation is not None:
+        reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]))
+    entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict()}
     if tab.empty:
-        return {"law_inputs_covered": cov, "law_table": None, "law_figure": None}
+        return {**entries, "law_table": None, "law_figure": None}
+    tab = continue_table(tab, reach)
     write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
-                                         "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale "
-                                         "(SI units)"})
+                                         "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale, "
+                                         "continued (SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
-    return {"law_inputs_covered": cov, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
+    return {**entries, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 
 
 def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
@@ -431,6 +442,9 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
     warp = manifest_warp(man.get("record_fit"))
     if warp is not None:
         comps["obj_m"] = BendingWarp(comps["obj_m"], *warp)
+    reach = manifest_reach(man)
+    if reach is not None and "obj_m" in learned_models(man):
+        comps["obj_m"] = TangentContinuation(comps["obj_m"], reach)
     return comps, (center if man["features"] == "paper" else None)
 
 

@@ -40,6 +40,7 @@ from crgpr.gp.sampling import (
 )
 from crgpr.gp.sampling import compress as compress_samples
 from crgpr.io import load_npz, write_json, write_npz
+from crgpr.learning.extrapolation import TangentContinuation
 from crgpr.learning.gradient_models import ALL_MODELS
 from crgpr.learning.nominal import SelectedInputs
 from crgpr.learning.warp import BendingWarp
@@ -123,11 +124,12 @@ def uq_seed(seed: int, model: str) -> int:
     return int(np.random.SeedSequence([int(seed), 5, ALL_MODELS.index(model)]).generate_state(1)[0])
 
 
-WRAPPERS = (SelectedInputs, BendingWarp)  # components that see another through ``component``
+# components that see another through ``component``
+WRAPPERS = (SelectedInputs, BendingWarp, TangentContinuation)
 
 
 def unwrapped(component: Any) -> Any:
-    """The component inside any ``WRAPPERS`` (input selection, record-fit warp)."""
+    """The component inside any ``WRAPPERS`` (input selection, record-fit warp, tangent continuation)."""
     while isinstance(component, WRAPPERS):
         component = component.component
     return component

@@ -1,0 +1,151 @@
+"""A learned bending law beyond the curvatures it was trained on (paper Sec. II: the law is unknown).
+
+Outside its covered range [lo, hi] (the training inputs' min and max, mirrored samples
+included) a GP law's mean is its basis trend plus the kernel's decay towards it: an
+extrapolation the data did not check. Where the record bends the rod one way and the law is
+not mirrored (its odd symmetry refused), the other side is pure extrapolation and the linear
+trend fitted to the far side can be far off (a saturating law's trend, softened by the
+saturation, halves the moment there). So, per side of the covered range:
+
+* the **reach** r: the law is the GP's own mean out to the farthest grid point of the law table
+  (``learning.law_tables``: ``pad`` x the range beyond each edge) up to which every grid point's
+  95 % band half-width 1.96 sd stays within ``band`` |m|, counted outward from the edge; the
+  edge itself where the first point beyond it fails. A law whose band stays narrow far out (a
+  law mirrored over both signs of the curvature, learned from exact moments) keeps its GP
+  extrapolation; one the data leave unconstrained (the band as wide as the moment) does not;
+* beyond r: the law continued by its tangent, m(kappa) = m(r) + k_r (kappa - r), with k_r =
+  max(0, secant slope of the law over the last ``tangent_span`` (hi - lo) inside r): the
+  first-order Taylor continuation of what the data show at their edge, never a negative
+  stiffness. The moment stays a function of the curvature (and s), so the learned H_z keeps
+  a potential (eq. (10)).
+
+A law of s (a rod graded along its length): the reach of each side is the nearest over the
+table's s slices. The band used is the table's (jackknife-scaled, with the record-fit warp's
+share), at the other inputs' training medians.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+
+
+@dataclass(frozen=True)
+class Reach:
+    """How far each side of a bending law uses its GP mean, and the tangent's secant width (JSON-able)."""
+
+    lo: float  # the GP mean is used down to this curvature [1/m]
+    hi: float  # ... and up to this one [1/m]
+    span: float  # secant width of the tangent continuation, tangent_span (hi_cov - lo_cov) [1/m]
+    covered_lo: float  # the covered range's edges [1/m]
+    covered_hi: float
+    band: float  # the criterion: 1.96 sd <= band |m| [-]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def side_reach(x: np.ndarray, mean: np.ndarray, sd: np.ndarray, lo: float, hi: float, band: float
+               ) -> tuple[float, float]:
+    """(r_lo, r_hi) of one law slice tabulated on the increasing grid ``x`` (module doc): from each
+    edge of [lo, hi] outward, the last grid point of the run of points whose 1.96 ``sd`` is within
+    ``band`` |``mean``|; the edge itself where the first point beyond it fails or none lies beyond."""
+    x, mean, sd = (np.asarray(a, dtype=float).ravel() for a in (x, mean, sd))
+    ok = Z95 * sd <= band * np.abs(mean)
+
+    def walk(idx: np.ndarray, edge: float) -> float:
+        r = edge
+        for i in idx:
+            if not ok[i]:
+                break
+            r = float(x[i])
+        return r
+    return walk(np.flatnonzero(x < lo)[::-1], lo), walk(np.flatnonzero(x > hi), hi)
+
+
+def law_reach(table: pd.DataFrame, band: float, tangent_span: float) -> Reach | None:
+    """The ``Reach`` of the bending law in a law table (``learning.law_tables``: the rows of law
+    ``obj_m``, input ``kappa``; one slice per ``at_s``, the nearest reach kept); None without them."""
+    if not 0 < tangent_span <= 1 or band <= 0:
+        raise ValueError(f"law_reach: band {band} must be > 0 and tangent_span {tangent_span} in (0, 1]")
+    rows = table[(table["law"] == "obj_m") & (table["input"] == "kappa")] if not table.empty else table
+    if rows.empty:
+        return None
+    lo, hi = float(rows["covered_lo"].iloc[0]), float(rows["covered_hi"].iloc[0])
+    r_lo, r_hi = lo, hi
+    slices = rows.groupby("at_s", dropna=False) if rows["at_s"].notna().any() else [(None, rows)]
+    first = True
+    for _, g in slices:
+        g = g.sort_values("x")
+        a, b = side_reach(g["x"].to_numpy(), g["mean"].to_numpy(), g["sd"].to_numpy(), lo, hi, band)
+        r_lo, r_hi = (a, b) if first else (max(r_lo, a), min(r_hi, b))
+        first = False
+    return Reach(lo=r_lo, hi=r_hi, span=tangent_span * (hi - lo), covered_lo=lo, covered_hi=hi, band=band)
+
+
+def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach: Reach) -> np.ndarray:
+    """The law at curvatures ``kappa`` (any shape), continued by its tangent beyond the reach
+    (module doc); ``law(k)`` evaluates it at curvatures of ``kappa``'s shape (broadcasting as the
+    law's own output does)."""
+    k = np.asarray(kappa, dtype=float)
+    kc = np.clip(k, reach.lo, reach.hi)
+    above, below = k > reach.hi, k < reach.lo
+    if not (above.any() or below.any()):
+        return law(k)
+    y = law(kc)
+    inner = np.where(above, reach.hi - reach.span, np.where(below, reach.lo + reach.span, kc))
+    slope = np.maximum((y - law(inner)) / np.where(below, -reach.span, reach.span), 0.0)
+    return y + np.where(above | below, slope, 0.0) * (k - kc)
+
+
+class TangentContinuation:
+    """A bending-law component (``learned.Component``, objective m features: column 0 is kappa)
+    continued by its tangent beyond its ``Reach`` (module doc); a wrapper like
+    ``warp.BendingWarp`` (``rewrap``: the same continuation of another component, e.g. its
+    posterior samples, each continued from its own value and slope)."""
+
+    def __init__(self, component: Any, reach: Reach):
+        self.component, self.reach = component, reach
+        self.meta = getattr(component, "meta", {})
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+
+        def law(k: np.ndarray) -> np.ndarray:
+            Xk = X.copy()
+            Xk[..., 0] = k
+            return self.component(Xk)
+        return continued(X[..., 0], law, self.reach)
+
+    def rewrap(self, component: Any) -> TangentContinuation:
+        return TangentContinuation(component, self.reach)
+
+
+def continue_table(table: pd.DataFrame, reach: Reach | None) -> pd.DataFrame:
+    """The law table with the bending law's ``mean`` continued beyond ``reach`` (the law the
+    rollouts integrate; each s slice from its own tabulated values, linearly interpolated) and a
+    column ``continued`` (the row's mean is the tangent continuation); ``sd`` is the GP's."""
+    out = table.copy()
+    out["continued"] = False
+    if reach is None or out.empty:
+        return out
+    sel = (out["law"] == "obj_m") & (out["input"] == "kappa")
+    for _, g in out[sel].groupby("at_s", dropna=False):
+        g = g.sort_values("x")
+        x, m = g["x"].to_numpy(), g["mean"].to_numpy()
+        out.loc[g.index, "mean"] = continued(x, lambda k, x=x, m=m: np.interp(k, x, m), reach)
+        out.loc[g.index, "continued"] = (x > reach.hi) | (x < reach.lo)
+    return out
+
+
+def manifest_reach(man: dict[str, Any]) -> Reach | None:
+    """The ``Reach`` recorded in a ``crgpr learn`` manifest (``bending_extrapolation``), else None
+    (no learned bending law, or a manifest written before the reach was recorded)."""
+    d = man.get("bending_extrapolation")
+    return None if not d else Reach(**{k: float(d[k]) for k in Reach.__dataclass_fields__})

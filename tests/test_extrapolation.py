@@ -1,0 +1,131 @@
+"""A learned bending law beyond its covered curvatures: the GP's mean while its band is narrow,
+its tangent beyond (learning.extrapolation)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from crgpr.gp import fit_gp
+from crgpr.learning.extrapolation import (
+    Reach,
+    TangentContinuation,
+    continue_table,
+    continued,
+    law_reach,
+    manifest_reach,
+    side_reach,
+)
+
+
+def _table(x: np.ndarray, mean: np.ndarray, sd: np.ndarray, lo: float, hi: float, at_s: float = np.nan
+           ) -> pd.DataFrame:
+    return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": x, "mean": mean, "sd": sd,
+                         "covered": (x >= lo) & (x <= hi), "covered_lo": lo, "covered_hi": hi, "at_s": at_s})
+
+
+def test_reach_is_the_last_point_of_the_narrow_band_run_from_each_edge():
+    x = np.linspace(-2.0, 2.0, 41)
+    mean = x.copy()
+    # 1.96 sd = 0.2 |m| exactly at |x| = 1.5 on the right; the left fails at its first point
+    sd = np.where(x > 0, 0.2 / 1.959963984540054 * np.maximum(x - 1.0, 0.0) * 3.0, 10.0)
+    sd[np.abs(x) <= 1.0] = 0.0
+    lo, hi = side_reach(x, mean, sd, -1.0, 1.0, band=0.2)
+    assert lo == -1.0  # the first point beyond the left edge fails: the edge itself
+    assert hi == pytest.approx(1.5, abs=1e-12)
+    # a band that fails once stops the run even if it narrows again further out
+    sd2 = sd.copy()
+    sd2[x > 1.7] = 0.0
+    assert side_reach(x, mean, sd2, -1.0, 1.0, band=0.2)[1] == pytest.approx(1.5, abs=1e-12)
+
+
+def test_a_law_of_s_takes_the_nearest_reach_over_its_slices():
+    x = np.linspace(-2.0, 2.0, 41)
+    narrow, wide = np.zeros_like(x), np.where(np.abs(x) > 1.0, 10.0, 0.0)
+    tab = pd.concat([_table(x, x, narrow, -1.0, 1.0, 0.1), _table(x, x, wide, -1.0, 1.0, 0.4)])
+    r = law_reach(tab, band=0.2, tangent_span=0.1)
+    assert (r.lo, r.hi) == (-1.0, 1.0) and r.span == pytest.approx(0.2)
+    assert law_reach(tab[tab["at_s"] == 0.1], 0.2, 0.1).hi == pytest.approx(2.0)
+    assert law_reach(tab.iloc[:0], 0.2, 0.1) is None
+    with pytest.raises(ValueError, match="tangent_span"):
+        law_reach(tab, 0.2, 0.0)
+
+
+REACH = Reach(lo=-1.0, hi=2.0, span=0.5, covered_lo=-1.0, covered_hi=1.0, band=0.2)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-20.0, 20.0), st.floats(0.1, 5.0), st.floats(-2.0, 2.0))
+def test_continuation_is_the_law_inside_its_reach_and_its_tangent_beyond(k, a, b):
+    def law(v):
+        return a * np.tanh(v) + b * v ** 3
+    y = continued(np.array([k]), law, REACH)[0]
+    if REACH.lo <= k <= REACH.hi:
+        assert y == law(np.array([k]))[0]
+    else:
+        r = REACH.hi if k > REACH.hi else REACH.lo
+        inner = r - REACH.span if k > REACH.hi else r + REACH.span
+        slope = max((law(np.array([r]))[0] - law(np.array([inner]))[0]) / (r - inner), 0.0)
+        assert y == pytest.approx(law(np.array([r]))[0] + slope * (k - r), rel=1e-12, abs=1e-12)
+    # continuous at the reach, and never a negative stiffness beyond it
+    eps = 1e-9
+    for r, sgn in ((REACH.hi, 1.0), (REACH.lo, -1.0)):
+        y0, y1 = continued(np.array([r, r + sgn * eps]), law, REACH)
+        assert abs(y1 - y0) < 1e-6
+        far = continued(np.array([r + sgn * 1.0, r + sgn * 2.0]), law, REACH)
+        assert sgn * (far[1] - far[0]) >= 0.0
+
+
+def test_wrapper_continues_each_row_from_its_own_inputs_and_rewraps():
+    def law_of_s(X):  # m(kappa, s) = (1 + s) kappa, s in column 1
+        return (1.0 + X[..., 1]) * X[..., 0]
+    X = np.zeros((4, 3, 2))
+    X[..., 0] = np.array([0.5, 3.0, -4.0])[None, :]
+    X[..., 1] = np.arange(4)[:, None]
+    wrapped = TangentContinuation(law_of_s, REACH)
+    assert np.allclose(wrapped(X), law_of_s(X))  # a linear law is its own tangent
+    saturating = TangentContinuation(lambda Z: np.tanh(Z[..., 0]) * (1.0 + Z[..., 1]), REACH)
+    out = saturating(X)
+    assert out.shape == (4, 3)
+    for i in range(4):
+        for j in range(3):
+            def law(v, s=X[i, j, 1]):
+                return np.tanh(v) * (1 + s)
+            assert out[i, j] == pytest.approx(continued(np.array([X[i, j, 0]]), law, REACH)[0])
+    assert wrapped.rewrap(law_of_s).reach is REACH
+    assert manifest_reach({"bending_extrapolation": REACH.to_dict()}) == REACH
+    assert manifest_reach({"bending_extrapolation": None}) is None and manifest_reach({}) is None
+
+
+def test_a_law_seen_on_one_side_follows_its_edge_not_the_far_sides_trend():
+    """A saturating law odd about 0, its noisy samples from one side (as a record that bends the
+    rod one way gives them, unmirrored): on the unseen side the band is as wide as the moment
+    almost at once, so the reach stops at the edge, and the tangent there follows the law better
+    than the GP's linear-basis trend, fitted where the law saturates (ten noise draws)."""
+    ms, ei = 0.06, 1.5e-3
+
+    def truth(k):
+        return ms * np.tanh(ei * k / ms)
+    ratios = []
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        k = rng.uniform(-70.0, 3.0, 300)
+        gp = fit_gp(k[:, None], truth(k) + 3e-3 * rng.standard_normal(k.size), basis="linear", n_restarts=2,
+                    seed=0)
+        x = np.linspace(k.min() - 36.5, k.max() + 36.5, 201)
+        mean, var = gp.predict(x[:, None], return_var=True)
+        mean, sd = np.ravel(mean), np.sqrt(np.ravel(var))
+        tab = _table(x, mean, sd, float(k.min()), float(k.max()))
+        r = law_reach(tab, band=0.2, tangent_span=0.1)
+        assert r.hi == k.max() and r.lo < k.min()  # the seen side keeps its GP beyond the edge
+        cont = continue_table(tab, r)
+        far = (x > 15.0) & (x < 40.0)
+        flagged = cont["continued"].to_numpy()
+        assert flagged[far].all() and not flagged[tab["covered"].to_numpy()].any()
+        assert np.all(np.diff(cont["mean"].to_numpy()[x > r.hi]) >= 0.0)
+        ratios.append(np.abs(cont["mean"].to_numpy()[far] - truth(x[far])).max()
+                      / np.abs(mean[far] - truth(x[far])).max())
+    assert np.median(ratios) < 0.75, ratios
