@@ -79,6 +79,24 @@ def test_continuation_is_the_law_inside_its_reach_and_its_tangent_beyond(k, a, b
         assert sgn * (far[1] - far[0]) >= 0.0
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-3.0, 3.0), st.floats(0.2, 3.0), st.floats(-30.0, 30.0))
+def test_an_odd_law_is_continued_by_its_mirror_image_as_far_as_the_other_side_reaches(c, a, k):
+    """The reach [c - 2, c + 6] of a law odd about c: beyond c - 2 the continuation is the law
+    itself (its mirror image is) down to c - 6, where the other side's reach ends; beyond c - 6
+    and beyond c + 6, the tangent of the law at c + 6 (mirrored on the short side)."""
+    def law(v):
+        return a * np.sinh((v - c) / 2.0)
+    r = Reach(lo=c - 2.0, hi=c + 6.0, span=0.5, covered_lo=c - 2.0, covered_hi=c + 6.0, band=0.2, center=c)
+    y = continued(np.array([k]), law, r)[0]
+    if abs(k - c) <= 6.0:
+        assert y == pytest.approx(law(np.array([k]))[0], rel=1e-9, abs=1e-12)
+    else:
+        end = c + 6.0 if k > c else c - 6.0
+        slope = (law(np.array([c + 6.0]))[0] - law(np.array([c + 5.5]))[0]) / 0.5
+        assert y == pytest.approx(law(np.array([end]))[0] + slope * (k - end), rel=1e-9, abs=1e-12)
+
+
 def test_wrapper_continues_each_row_from_its_own_inputs_and_rewraps():
     def law_of_s(X):  # m(kappa, s) = (1 + s) kappa, s in column 1
         return (1.0 + X[..., 1]) * X[..., 0]
@@ -103,8 +121,9 @@ def test_wrapper_continues_each_row_from_its_own_inputs_and_rewraps():
 def test_a_law_seen_on_one_side_follows_its_edge_not_the_far_sides_trend():
     """A saturating law odd about 0, its noisy samples from one side (as a record that bends the
     rod one way gives them, unmirrored): on the unseen side the band is as wide as the moment
-    almost at once, so the reach stops at the edge, and the tangent there follows the law better
-    than the GP's linear-basis trend, fitted where the law saturates (ten noise draws)."""
+    almost at once, so the reach stops at the edge. Beyond it the tangent there follows the law
+    better than the GP's linear-basis trend, fitted where the law saturates, and with the rest
+    curvature known the mirror image of the seen side follows it far better (ten noise draws)."""
     ms, ei = 0.06, 1.5e-3
 
     def truth(k):
@@ -119,13 +138,15 @@ def test_a_law_seen_on_one_side_follows_its_edge_not_the_far_sides_trend():
         mean, var = gp.predict(x[:, None], return_var=True)
         mean, sd = np.ravel(mean), np.sqrt(np.ravel(var))
         tab = _table(x, mean, sd, float(k.min()), float(k.max()))
-        r = law_reach(tab, band=0.2, tangent_span=0.1)
-        assert r.hi == k.max() and r.lo < k.min()  # the seen side keeps its GP beyond the edge
-        cont = continue_table(tab, r)
-        far = (x > 15.0) & (x < 40.0)
-        flagged = cont["continued"].to_numpy()
-        assert flagged[far].all() and not flagged[tab["covered"].to_numpy()].any()
-        assert np.all(np.diff(cont["mean"].to_numpy()[x > r.hi]) >= 0.0)
-        ratios.append(np.abs(cont["mean"].to_numpy()[far] - truth(x[far])).max()
-                      / np.abs(mean[far] - truth(x[far])).max())
-    assert np.median(ratios) < 0.75, ratios
+        for center in (None, 0.0):
+            r = law_reach(tab, band=0.2, tangent_span=0.1, center=center)
+            assert r.hi == k.max() and r.lo < k.min()  # the seen side keeps its GP beyond the edge
+            cont = continue_table(tab, r)
+            far = (x > 15.0) & (x < 40.0)
+            flagged = cont["continued"].to_numpy()
+            assert flagged[far].all() and not flagged[tab["covered"].to_numpy()].any()
+            assert np.all(np.diff(cont["mean"].to_numpy()[x > r.hi]) >= 0.0)
+            ratios.append(np.abs(cont["mean"].to_numpy()[far] - truth(x[far])).max()
+                          / np.abs(mean[far] - truth(x[far])).max())
+    tangent, mirrored = np.array(ratios[0::2]), np.array(ratios[1::2])
+    assert np.median(tangent) < 0.75 and mirrored.max() < 0.25, ratios

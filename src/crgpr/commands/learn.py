@@ -325,7 +325,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                     damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
                        None if fit is None else manifest_warp(fit.to_dict()),
-                       None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"])
+                       None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"],
+                       odd if odd is not None else (None if rest is None else rest.kappa_rest))
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -401,12 +402,13 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
                 warp: Warp | None = None, warp_cov: np.ndarray | None = None,
-                extrapolation: dict[str, Any] | None = None) -> dict[str, Any]:
+                extrapolation: dict[str, Any] | None = None, center: float | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
     where it has one, continued by its tangent beyond its reach (``learning.extrapolation``,
-    ``extrapolation`` = config ``camera.learn.extrapolation``); returns the manifest's entries
-    (the covered range of every learned model's inputs, the bending law's reach, the file names)."""
+    ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature);
+    returns the manifest's entries (the covered range of every learned model's inputs, the
+    bending law's reach, the file names)."""
     from crgpr.report.laws import law_figure
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
@@ -414,7 +416,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
     tab = law_tables(out, trained, params, settings, seed, warp, warp_cov)
     reach = None
     if "obj_m" in trained and extrapolation is not None:
-        reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]))
+        reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]), center)
     entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict()}
     if tab.empty:
         return {**entries, "law_table": None, "law_figure": None}

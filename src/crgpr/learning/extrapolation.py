@@ -13,11 +13,17 @@ saturation, halves the moment there). So, per side of the covered range:
   edge itself where the first point beyond it fails. A law whose band stays narrow far out (a
   law mirrored over both signs of the curvature, learned from exact moments) keeps its GP
   extrapolation; one the data leave unconstrained (the band as wide as the moment) does not;
-* beyond r: the law continued by its tangent, m(kappa) = m(r) + k_r (kappa - r), with k_r =
-  max(0, secant slope of the law over the last ``tangent_span`` (hi - lo) inside r): the
-  first-order Taylor continuation of what the data show at their edge, never a negative
-  stiffness. The moment stays a function of the curvature (and s), so the learned H_z keeps
-  a potential (eq. (10)).
+* beyond r, where the law has a rest curvature c between the two reaches (``rest_state``, or
+  the curvature it is mirrored about): the shape of its mirror image about c, M(kappa) =
+  2 m(c) - m(2 c - kappa), joined on at r (m(r) + M(kappa) - M(r)), for as far as the mirrored
+  curvature 2 c - kappa stays within the other side's reach: a symmetric section's law is odd
+  about its rest curvature, and the other side is what the data show of it. A record that bends
+  the rod one way leaves one side short; mirrored laws (both sides reached alike) have no such
+  piece;
+* beyond that (or without c): the law continued by its tangent, with the slope k of the law's
+  secant over the last ``tangent_span`` (hi - lo) inside the reach it ends on (the other side's,
+  mirrored, after a mirror piece), never below 0: no negative stiffness. The moment stays a
+  function of the curvature (and s), so the learned H_z keeps a potential (eq. (10)).
 
 A law of s (a rod graded along its length): the reach of each side is the nearest over the
 table's s slices. The band used is the table's (jackknife-scaled, with the record-fit warp's
@@ -46,6 +52,7 @@ class Reach:
     covered_lo: float  # the covered range's edges [1/m]
     covered_hi: float
     band: float  # the criterion: 1.96 sd <= band |m| [-]
+    center: float | None = None  # the rest curvature the mirror piece is about (None: no mirror) [1/m]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -69,9 +76,11 @@ def side_reach(x: np.ndarray, mean: np.ndarray, sd: np.ndarray, lo: float, hi: f
     return walk(np.flatnonzero(x < lo)[::-1], lo), walk(np.flatnonzero(x > hi), hi)
 
 
-def law_reach(table: pd.DataFrame, band: float, tangent_span: float) -> Reach | None:
+def law_reach(table: pd.DataFrame, band: float, tangent_span: float, center: float | None = None
+              ) -> Reach | None:
     """The ``Reach`` of the bending law in a law table (``learning.law_tables``: the rows of law
-    ``obj_m``, input ``kappa``; one slice per ``at_s``, the nearest reach kept); None without them."""
+    ``obj_m``, input ``kappa``; one slice per ``at_s``, the nearest reach kept), ``center`` its
+    rest curvature (None: unknown); None without such rows."""
     if not 0 < tangent_span <= 1 or band <= 0:
         raise ValueError(f"law_reach: band {band} must be > 0 and tangent_span {tangent_span} in (0, 1]")
     rows = table[(table["law"] == "obj_m") & (table["input"] == "kappa")] if not table.empty else table
@@ -86,22 +95,34 @@ def law_reach(table: pd.DataFrame, band: float, tangent_span: float) -> Reach | 
         a, b = side_reach(g["x"].to_numpy(), g["mean"].to_numpy(), g["sd"].to_numpy(), lo, hi, band)
         r_lo, r_hi = (a, b) if first else (max(r_lo, a), min(r_hi, b))
         first = False
-    return Reach(lo=r_lo, hi=r_hi, span=tangent_span * (hi - lo), covered_lo=lo, covered_hi=hi, band=band)
+    return Reach(lo=r_lo, hi=r_hi, span=tangent_span * (hi - lo), covered_lo=lo, covered_hi=hi, band=band,
+                 center=None if center is None else float(center))
 
 
 def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach: Reach) -> np.ndarray:
-    """The law at curvatures ``kappa`` (any shape), continued by its tangent beyond the reach
-    (module doc); ``law(k)`` evaluates it at curvatures of ``kappa``'s shape (broadcasting as the
-    law's own output does)."""
+    """The law at curvatures ``kappa`` (any shape) inside the reach, continued beyond it by its
+    mirror image about the rest curvature and then by its tangent (module doc); ``law(k)``
+    evaluates it at curvatures of ``kappa``'s shape (broadcasting as the law's own output does)."""
     k = np.asarray(kappa, dtype=float)
-    kc = np.clip(k, reach.lo, reach.hi)
-    above, below = k > reach.hi, k < reach.lo
-    if not (above.any() or below.any()):
+    lo, hi, d = reach.lo, reach.hi, reach.span
+    if not ((k > hi).any() or (k < lo).any()):
         return law(k)
+    c = reach.center
+    mirror = c is not None and lo < c < hi
+    end_lo, end_hi = (min(lo, 2 * c - hi), max(hi, 2 * c - lo)) if mirror else (lo, hi)
+    kc, ke = np.clip(k, lo, hi), np.clip(k, end_lo, end_hi)
     y = law(kc)
-    inner = np.where(above, reach.hi - reach.span, np.where(below, reach.lo + reach.span, kc))
-    slope = np.maximum((y - law(inner)) / np.where(below, -reach.span, reach.span), 0.0)
-    return y + np.where(above | below, slope, 0.0) * (k - kc)
+    if mirror and (ke != kc).any():  # m(r) + M(kappa) - M(r), M(kappa) = 2 m(c) - m(2 c - kappa)
+        y = y + law(2 * c - kc) - law(2 * c - ke)
+    if (k != ke).any():
+        def secant(a: float, b: float) -> np.ndarray:
+            return np.maximum((law(np.full_like(k, b)) - law(np.full_like(k, a))) / (b - a), 0.0)
+        s_hi, s_lo = secant(hi - d, hi), secant(lo, lo + d)
+        # the tangent of the piece each tail starts from: a mirror piece ends on the other side's edge
+        slope = np.where(k > end_hi, s_lo if end_hi > hi else s_hi,
+                         np.where(k < end_lo, s_hi if end_lo < lo else s_lo, 0.0))
+        y = y + slope * (k - ke)
+    return y
 
 
 class TangentContinuation:
@@ -148,4 +169,6 @@ def manifest_reach(man: dict[str, Any]) -> Reach | None:
     """The ``Reach`` recorded in a ``crgpr learn`` manifest (``bending_extrapolation``), else None
     (no learned bending law, or a manifest written before the reach was recorded)."""
     d = man.get("bending_extrapolation")
-    return None if not d else Reach(**{k: float(d[k]) for k in Reach.__dataclass_fields__})
+    if not d:
+        return None
+    return Reach(**{k: None if d.get(k) is None else float(d[k]) for k in Reach.__dataclass_fields__})
