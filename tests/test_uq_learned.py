@@ -25,6 +25,7 @@ from crgpr.commands.learn import (
 from crgpr.commands.uq import uq_rollout_learned, uq_samples_learned
 from crgpr.config import ConfigError, load_config, validate_config
 from crgpr.io import read_metadata, read_parquet, write_parquet
+from crgpr.learning.extrapolation import TangentContinuation
 from crgpr.learning.learned import rollout
 from crgpr.learning.nominal import NominalLaw, SelectedInputs
 from crgpr.physics.params import SimSettings
@@ -73,7 +74,8 @@ def test_learned_rod_with_zero_variance_samples_reproduces_the_mean_rollout(grey
         with np.load(d / "model" / f"{m}.npz", allow_pickle=False) as a:
             zero[m] = TabulatedSamples(a["table_x"], np.repeat(a["table_y"][None], S, axis=0))
     comps, center = learned_components(d / "model", man, zero.__getitem__)
-    assert isinstance(comps["obj_n1"], NominalLaw) and isinstance(comps["obj_m"], SelectedInputs)
+    assert isinstance(comps["obj_n1"], NominalLaw) and isinstance(comps["obj_m"], TangentContinuation)
+    assert isinstance(comps["obj_m"].component, SelectedInputs)  # each sample continued beyond the reach
     t, q, p, keep, div = rollout_samples(comps, "objective", mean.params, center, 125.0, SHORT,
                                          learned_damping(man))
     assert div == [] and list(keep) == list(range(S))
