@@ -153,3 +153,22 @@ def test_uq_methods_may_name_the_camera_method_but_nothing_unknown():
     cfg["uq"]["methods"] = ["cr_gpr_objective", "no_such_method"]
     with pytest.raises(ConfigError, match="no_such_method"):
         validate_config(cfg, "smoke")
+
+
+def test_a_model_whose_force_laws_are_all_nominal_is_the_same_rod_for_every_member():
+    """A bending law that fell back to the nominal one (the record check) can leave a model with
+    no learned force law: its posterior rod is then deterministic, every member alike."""
+    from crgpr.config import load_config, rod_params
+    from crgpr.learning.nominal import NOMINAL_LAWS
+    from crgpr.physics.rod import straight_rod
+    from crgpr.uq.rollout import n_samples_of, sampled_rod
+
+    P = rod_params(load_config("tests/smoke_config.yaml"))
+    comps = {c: NominalLaw(law, P) for law, c in NOMINAL_LAWS.items()}
+    with pytest.raises(ValueError, match="none is sampled"):
+        n_samples_of(comps)
+    assert n_samples_of(comps, default=1) == 1
+    q = np.stack([straight_rod(np.radians(a), P) for a in (40.0, 40.0, 70.0)])
+    q[..., 2] += 0.01 * np.sin(np.linspace(0, 3, P.N + 1))  # bent, so the laws act
+    f = sampled_rod(comps, "objective", P, None).internal(q)
+    assert np.array_equal(f[0], f[1]) and not np.allclose(f[0], f[2]) and np.abs(f).max() > 0

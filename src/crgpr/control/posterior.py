@@ -36,8 +36,9 @@ def sample_internals(components: Mapping[str, Any], features: str, params: RodPa
                      theta_center: float | None) -> list[Callable[[np.ndarray], np.ndarray]]:
     """-dH/dq per unit length of each posterior sample alone: q (N+1, 3) -> (N+1, 3), one
     callable per sample s of the sample sets in ``components`` (deterministic components, e.g.
-    the momentum maps' means or nominal laws, are shared by every sample)."""
-    S = n_samples_of(components)
+    the momentum maps' means or nominal laws, are shared by every sample; with none, the one
+    deterministic rod)."""
+    S = n_samples_of(components, default=1)
 
     def one(s: int) -> Callable[[np.ndarray], np.ndarray]:
         rod = LearnedRod({m: select_samples(c, np.array([s])) for m, c in components.items()},

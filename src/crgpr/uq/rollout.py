@@ -35,10 +35,13 @@ log = logging.getLogger(__name__)
 UQ_COLUMNS: tuple[str, ...] = ("sample", *TRAJECTORY_COLUMNS)
 
 
-def n_samples_of(samples: Mapping[str, Any]) -> int:
+def n_samples_of(samples: Mapping[str, Any], default: int | None = None) -> int:
     """The common S of the components that are sample sets (deterministic ones, e.g. the nominal
-    laws of a grey-box model, are shared by every sample)."""
+    laws of a grey-box model, are shared by every sample); ``default`` where none is a sample set
+    (a model whose force laws are all nominal: every sample is the same rod), else an error."""
     sizes = {m: unwrapped(s).n_samples for m, s in samples.items() if is_sample_set(s)}
+    if not sizes and default is not None:
+        return int(default)
     if len(set(sizes.values())) != 1:
         raise ValueError(f"UQ samples have different S per model (or none is sampled): {sizes}")
     return next(iter(sizes.values()))
@@ -48,8 +51,9 @@ def sampled_rod(samples: Mapping[str, Any], features: str, params: RodParams,
                 theta_center: float | None, damping: float = 0.0) -> LearnedRod:
     """The learned rod whose components are posterior samples (state (S, N+1, 3)); components
     without a sample axis (nominal laws) act on every sample alike, and so does a learned bending
-    damping c (``damping``, the mean model's: ``learning.damping``)."""
-    n_samples_of(samples)
+    damping c (``damping``, the mean model's: ``learning.damping``); with no sample set at all
+    every member of the batch is the same rod."""
+    n_samples_of(samples, default=0)
     return LearnedRod(samples, features, params, theta_center, damping)
 
 
