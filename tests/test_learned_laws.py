@@ -207,40 +207,6 @@ def test_precurved_rods_rest_curvature_is_recovered_within_its_band(precurved_mo
     assert m[2] == pytest.approx(k * truth.EI, rel=0.1)
 
 
-def test_a_learned_law_is_checked_against_the_nominal_one_on_its_own_record(precurved_models):
-    """The pre-curved rod's law learned from camera positions reproduces its record better than
-    the nominal (straight) rod from the same start: it is kept. (The 0.4 s full-state record
-    also learns a shear law, with which both rods leave the physical range: no check decides.)"""
-    _, d, _ = precurved_models
-    man = load_learned(d / "camera")[1]
-    check = man["bending_record_check"]
-    assert not check["nominal_better"] and "obj_m" in man["models"], check
-    if np.isfinite(man["record_fit"]["rmse_fitted"]):  # the same rod, start and record as the fit's
-        assert check["rmse_learned"] == pytest.approx(man["record_fit"]["rmse_fitted"], rel=1e-9)
-    assert check["rmse_nominal"] > 2.0 * check["rmse_learned"], check
-    full = load_learned(d / "auto")[1]
-    assert not full["bending_record_check"]["nominal_better"] and "obj_m" in full["models"]
-
-
-def test_a_learned_law_the_nominal_one_beats_on_the_record_falls_back_to_it(precurved_models, tmp_path,
-                                                                             monkeypatch):
-    """Where the nominal bending law reproduces the record better (forced here), the directory
-    takes m from the nominal rod, refits the record with it (about the nominal kappa0) and
-    records why; the rod it loads is the nominal law, warped where the refit keeps a warp."""
-    import crgpr.commands.learn as learn_mod
-
-    cfg, d, _ = precurved_models
-    monkeypatch.setattr(learn_mod, "_nominal_check", lambda *a: {"rmse_learned": 1.0, "rmse_nominal": 0.5,
-                                                                 "nominal_better": True})
-    learn(d / "full.parquet", tmp_path / "fallback", cfg, "objective", "gp")
-    model, man = load_learned(tmp_path / "fallback")
-    assert "m" in man["nominal_laws"] and "obj_m" not in man["models"]
-    assert man["bending_record_check"]["nominal_better"] and man["bending_extrapolation"] is None
-    assert man["record_fit"]["center"] == 0.0
-    comp = model.components["obj_m"]
-    assert isinstance(getattr(comp, "component", comp), learn_mod.NominalLaw)
-
-
 def test_precurved_rods_rest_curvature_is_recovered_from_1mm_camera_positions(precurved_models):
     _, d, truth = precurved_models
     man = load_learned(d / "camera")[1]

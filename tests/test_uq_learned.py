@@ -156,8 +156,9 @@ def test_uq_methods_may_name_the_camera_method_but_nothing_unknown():
 
 
 def test_a_model_whose_force_laws_are_all_nominal_is_the_same_rod_for_every_member():
-    """A bending law that fell back to the nominal one (the record check) can leave a model with
-    no learned force law: its posterior rod is then deterministic, every member alike."""
+    """A model whose force laws the data left all nominal (``camera.learn.nominal_laws: auto``,
+    e.g. the materials study's linear rod from camera data): its posterior rod is deterministic,
+    every member alike."""
     from crgpr.config import load_config, rod_params
     from crgpr.learning.nominal import NOMINAL_LAWS
     from crgpr.physics.rod import straight_rod

@@ -4,7 +4,6 @@ config change or a code edit (exactly the affected rules and their dependants)."
 from __future__ import annotations
 
 import ast
-import json
 import os
 import re
 import shutil
@@ -17,7 +16,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from crgpr.commands.ports import METHODS
 from crgpr.io import read_metadata, read_parquet
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS
 
@@ -128,14 +126,7 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
     band = pd.read_csv(tables / "actuated_uq.csv")
     assert set(band["method"]) == {"cr_gpr_objective", "cr_gpr_objective_camera"}
     done = band[band["n_diverged"] < band["n_samples"] - 1]
-    assert done["tip_coverage"].between(0, 1).all() and (done["tip_band_width_mean_over_L"] >= 0).all()
-    # a band of width 0 only for a model with no learned force law (the record check took the
-    # nominal bending law: every posterior sample is the same rod)
-    for method, rows in done.groupby("method"):
-        key = {v: k for k, v in METHODS.items()}[method]
-        man = json.loads((res / "actuated" / "models" / key / "manifest.json").read_text())
-        learned = [m for m in man["models"] if m.startswith("obj_")]
-        assert (rows["tip_band_width_mean_over_L"] > 0).all() == bool(learned), (method, learned)
+    assert done["tip_coverage"].between(0, 1).all() and (done["tip_band_width_mean_over_L"] > 0).all()
     pngs = list((res / "figures").glob("*.png"))
     assert len(pngs) >= 5
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)

@@ -82,7 +82,7 @@ from crgpr.learning.nominal import (
     segment_curvature_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
-from crgpr.learning.record_fit import RecordFit, fit_record, rod_record_rmse
+from crgpr.learning.record_fit import RecordFit, fit_record
 from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
@@ -301,7 +301,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if damping is not None and damping.kept and not record_fit:  # else the record fit sizes c (with the law)
         rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
-    fit, check = None, None
+    fit = None
     if record_fit:
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
@@ -310,19 +310,6 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           0.0 if damping is None else damping.coefficient, kind == "full_state")
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
-        if "obj_m" in trained:
-            # never worse than the nominal rod on its own record: a learned bending law that
-            # reproduces the record worse than the nominal one from the same start is not kept
-            check = _nominal_check(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, fit)
-            if check["nominal_better"]:
-                nominal_set = {*grey["nominal_laws"], "m"}
-                grey = {**grey, "nominal_laws": [k for k in NOMINAL_LAWS if k in nominal_set]}
-                trained = [n for n in trained if n != "obj_m"]
-                c0 = float(params.kappa0)
-                fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, c0,
-                                  float(np.max(np.abs(kappa - c0))), fit.damping_before, kind == "full_state")
-                if damping is not None and damping.kept:
-                    damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
                        None if fit is None else manifest_warp(fit.to_dict()),
                        None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"],
@@ -337,7 +324,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "bending_symmetry": sym if features == "objective" else None,
                 "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,
                 "bending_damping": None if damping is None else damping.to_dict(),
-                "record_fit": None if fit is None else fit.to_dict(), "bending_record_check": check,
+                "record_fit": None if fit is None else fit.to_dict(),
                 "models": trained, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
@@ -372,23 +359,6 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
                           "objective", params, None, c)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
                       cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start)
-
-
-def _nominal_check(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
-                   nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
-                   fit: RecordFit) -> dict[str, Any]:
-    """The learned rod as its record fit left it (warp, damping) against the same rod with the
-    nominal bending law EI (kappa - kappa0), unwarped, from the same start over the same record
-    (``record_fit.rod_record_rmse``, RMSE of theta): ``nominal_better`` where the nominal law
-    reproduces the record better (manifest ``bending_record_check``)."""
-    man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained,
-           "record_fit": fit.to_dict()}
-    comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
-    st, rf = _record_settings(cfg, arr, params), cfg["camera"]["learn"]["record_fit"]
-    rmse = {k: rod_record_rmse(LearnedRod({**comps, **law}, "objective", params, None, fit.damping), arr,
-                               params, st, rf, fit, inputs, ports)
-            for k, law in (("rmse_learned", {}), ("rmse_nominal", {"obj_m": NominalLaw("m", params)}))}
-    return {**rmse, "nominal_better": bool(rmse["rmse_nominal"] < rmse["rmse_learned"])}
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

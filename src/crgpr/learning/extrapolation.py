@@ -127,7 +127,7 @@ def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach:
 
 class TangentContinuation:
     """A bending-law component (``learned.Component``, objective m features: column 0 is kappa)
-    continued by its tangent beyond its ``Reach`` (module doc); a wrapper like
+    continued beyond its ``Reach`` (mirror piece, tangent: module doc); a wrapper like
     ``warp.BendingWarp`` (``rewrap``: the same continuation of another component, e.g. its
     posterior samples, each continued from its own value and slope)."""
 
@@ -137,12 +137,15 @@ class TangentContinuation:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X, dtype=float)
+        k = X[..., 0]
+        if k.size == 0 or (k.min() >= self.reach.lo and k.max() <= self.reach.hi):
+            return self.component(X)  # inside the reach (every rollout step but a few): as it is
 
         def law(k: np.ndarray) -> np.ndarray:
             Xk = X.copy()
             Xk[..., 0] = k
             return self.component(Xk)
-        return continued(X[..., 0], law, self.reach)
+        return continued(k, law, self.reach)
 
     def rewrap(self, component: Any) -> TangentContinuation:
         return TangentContinuation(component, self.reach)

@@ -245,20 +245,6 @@ def record_part(arr: dict[str, np.ndarray], cfg: dict[str, Any]) -> dict[str, np
             for k, v in arr.items()}
 
 
-def rod_record_rmse(rod: LearnedRod, arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings,
-                    cfg: dict[str, Any], fit: RecordFit, inputs: Inputs | None = None,
-                    ports: Ports | None = None) -> float:
-    """RMSE of theta [rad] over the free nodes and frames of the record the fit ``fit`` saw (its
-    first ``max_record_s``) of another ``rod`` (its own laws and damping), started as that fit
-    started the learned one (its start modes, or the recorded first state): the learned rod and
-    ``rod`` compared on the same record from the same start (inf where ``rod`` diverges)."""
-    arr = record_part(arr, cfg)
-    J = len(fit.start_coefficients) // 2
-    res = record_residuals(lambda W, c: rod, arr, params, settings, J, arr["t"].size, 0.0, fit.exact_start,
-                           inputs, ports)(np.asarray(fit.start_coefficients, dtype=float)[None])
-    return math.inf if res is None else float(np.sqrt(np.mean(res**2)))
-
-
 def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
                params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
