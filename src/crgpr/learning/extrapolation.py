@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+from crgpr.learning.laws import Z95
 
 
 @dataclass(frozen=True)
