@@ -30,9 +30,9 @@ The bending law's rest curvature and symmetry (``camera.learn.bending_symmetry: 
 estimated from the data (``learning.laws``; manifest ``rest_state``, ``bending_odd_about``), and
 the learned laws are shown as ``laws.parquet`` / ``laws.png`` (``learning.law_tables``,
 ``report.laws``; manifest ``law_inputs_covered``, ``law_table``, ``law_figure``). Beyond its
-covered curvatures the bending law is the GP's mean while its band stays narrow and its tangent
-beyond that (``camera.learn.extrapolation``, ``learning.extrapolation``; manifest
-``bending_extrapolation``).
+covered curvatures the bending law is the GP's mean while its band stays narrow, then its mirror
+image about its rest curvature and its tangent (``camera.learn.extrapolation``,
+``learning.extrapolation``; manifest ``bending_extrapolation``).
 
 A passive bending damping m_d = c dkappa/dt, c >= 0 (a viscoelastic rod's), is fitted jointly
 with an elastic law on the bending samples and kept only where held-out time blocks support it
@@ -375,7 +375,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
                 extrapolation: dict[str, Any] | None = None, center: float | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
-    where it has one, continued by its tangent beyond its reach (``learning.extrapolation``,
+    where it has one, continued beyond its reach (``learning.extrapolation``,
     ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature);
     returns the manifest's entries (the covered range of every learned model's inputs, the
     bending law's reach, the file names)."""

@@ -238,13 +238,6 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
     return consistent_gain(d)
 
 
-def record_part(arr: dict[str, np.ndarray], cfg: dict[str, Any]) -> dict[str, np.ndarray]:
-    """The arrays of the record's first ``max_record_s`` seconds (config ``camera.learn.record_fit``)."""
-    within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
-    return {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
-            for k, v in arr.items()}
-
-
 def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
                params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
@@ -260,7 +253,9 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     J = 0 if exact_start else int(cfg["start_modes"])
     K, blocks = int(cfg["warp_terms"]), int(cfg["blocks"])
     nd = int(damping > 0)
-    arr = record_part(arr, cfg)
+    within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
+    arr = {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
+           for k, v in arr.items()}
     n_t, iters = arr["t"].size, int(cfg["iterations"])
     n_fit = int(round((1.0 - float(cfg["holdout_fraction"])) * n_t))
     if n_fit < 3 or n_t - n_fit < 2 * blocks:
