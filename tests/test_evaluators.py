@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp, load_evaluator, select_inducing
-from crgpr.gp.evaluators import kernel_sum, kernel_sum_fast
+from crgpr.gp.evaluators import TABLE_POINTS, kernel_sum, kernel_sum_fast
+from crgpr.learning.nominal import SelectedInputs
 
 
 def _gp(kernel: str, basis: str, n: int = 150, d: int = 3, seed: int = 0) -> tuple[GP, np.ndarray]:
@@ -92,3 +93,23 @@ def test_inducing_selection_is_seeded_and_spread():
     Z = U[idx]
     gaps = np.sqrt(((U[:, None] - Z[None]) ** 2).sum(-1)).min(1)
     assert gaps.max() < 0.2  # every point is near an inducing input
+
+
+def test_a_law_of_kappa_and_s_is_tabulated_per_segment_as_its_mean():
+    """A bending law of (kappa, s) seen through ``SelectedInputs`` at the segments' fixed s is
+    one table per segment: within 1e-6 of the law's spread on the grid, the mean itself off it."""
+    rng = np.random.default_rng(4)
+    X = np.column_stack([rng.uniform(-20.0, 20.0, 300), rng.uniform(0.0, 0.5, 300)])
+    y = 0.01 * X[:, 0] * (1.0 + X[:, 1]) + 1e-4 * X[:, 0] ** 3 / 20.0
+    gp = fit_gp(X, y, kernel="se", basis="linear", ard=True,
+                fixed={"sigma_f": 1.0, "lengthscales": [1.0, 1.0], "sigma_n": 0.01})
+    mean = KernelMean.exact(gp)
+    s = np.linspace(0.01, 0.49, 25)
+    law = SelectedInputs(mean, [0], s)
+    assert law._tables is not None and law._tables.grid.size == TABLE_POINTS
+    rows = np.zeros((6, 25, 5))
+    rows[..., 0] = rng.uniform(-30.0, 30.0, (6, 25))
+    rows[0, :3, 0] = [law._tables.grid[0] - 1.0, law._tables.grid[-1] + 1.0, 0.0]  # off the grid
+    exact = mean(np.stack([rows[..., 0], np.broadcast_to(s, (6, 25))], -1))
+    np.testing.assert_allclose(law(rows), exact, rtol=0, atol=1e-6 * np.ptp(exact))
+    np.testing.assert_array_equal(law(rows)[0, :2], exact[0, :2])

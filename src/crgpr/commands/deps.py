@@ -52,6 +52,15 @@ def _imports(path: Path, module: str, src: Path) -> set[str]:
 
 
 @cache
+def _module_imports(module: str, src: str) -> frozenset[str]:
+    """``_imports`` of a ``crgpr`` module, parsed once per process (the rule files ask for
+    the closures of some fifty scripts that share most of their modules)."""
+    srcp = Path(src)
+    f = _module_file(srcp, module)
+    return frozenset(_imports(f, module, srcp)) if f is not None else frozenset()
+
+
+@cache
 def _closure(script: str, src: str) -> tuple[str, ...]:
     srcp = Path(src)
     todo = list(_imports(Path(script), "__script__", srcp))
@@ -61,9 +70,7 @@ def _closure(script: str, src: str) -> tuple[str, ...]:
         if m in seen:
             continue
         seen.add(m)
-        f = _module_file(srcp, m)
-        if f is not None:
-            todo.extend(_imports(f, m, srcp) - seen)
+        todo.extend(_module_imports(m, src) - seen)
     files = {str(_module_file(srcp, m)) for m in seen}
     return tuple(sorted(files))
 

@@ -20,8 +20,10 @@ flow). They share one representation of a single-output GP mean in the units of 
   < 1e-13); ``tol = 0`` is the dense sum;
 * ``KernelMean.dtc(gp, Z, w, beta)``: the sparse DTC / subset-of-regressors mean (``dtc_fit``),
   centres the M inducing inputs; O(M) per point;
-* ``Table1D``: a 1-D mean tabulated on a grid, linear interpolation, 0 (the prior mean)
-  outside, with the segment slope;
+* ``Table1D``: a 1-D mean tabulated on a grid (``law_grid``), linear interpolation, 0 (the
+  prior mean) outside, with the segment slope; ``interp_uniform``: the compiled interpolation
+  of rows of tables on one uniform grid (posterior samples of a 1-D law, a law of (kappa, s) at
+  the rollout's fixed s: ``crgpr.learning.nominal.SliceTables``);
 * posterior samples (``crgpr.gp.sampling.CompressedSamples``) are the same kernel expansion per
   sample plus an RFF prior term, evaluated by the same compiled ``kernel_sum``.
 
@@ -495,6 +497,38 @@ class KernelMean:
         if b.size >= 3:
             d = d + 2.0 * b[2] * u
         return (self.y_scale * d / self.x_scale[0]).reshape(x.shape)
+
+
+@njit(cache=True)
+def interp_uniform(x, g0, dg, values, slope, out):
+    """out[s, i] = row s of ``values`` (S, G), tabulated on the uniform grid g0 + dg k, linearly
+    interpolated at x[s, i] (its slope if ``slope``); 0 (the prior mean) off the grid."""
+    S, m = x.shape
+    G = values.shape[1]
+    for s in range(S):
+        for i in range(m):
+            r = (x[s, i] - g0) / dg
+            if not (r >= 0.0 and r <= G - 1):
+                out[s, i] = 0.0
+                continue
+            j = min(int(r), G - 2)
+            f = r - j
+            if slope:
+                out[s, i] = (values[s, j + 1] - values[s, j]) / dg
+            else:
+                out[s, i] = values[s, j] + f * (values[s, j + 1] - values[s, j])
+
+
+TABLE_POINTS = 4001  # grid points of a tabulated 1-D law (``law_grid``)
+
+
+def law_grid(x_train: np.ndarray, lengthscale: float) -> np.ndarray:
+    """The grid a 1-D law is tabulated on: ``TABLE_POINTS`` uniform points over its training
+    inputs' range widened by min(6 lengthscales, 10 ranges) on each side (the GP's mean has
+    returned to its trend there)."""
+    x = np.asarray(x_train, dtype=float)
+    width = min(6.0 * float(lengthscale), 10.0 * float(np.ptp(x)))
+    return np.linspace(x.min() - width, x.max() + width, TABLE_POINTS)
 
 
 class Table1D:

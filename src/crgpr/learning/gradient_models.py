@@ -50,6 +50,7 @@ import numpy as np
 
 from crgpr.config import ConfigError, rod_params
 from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, exact_weights, fit_gp
+from crgpr.gp.evaluators import TABLE_POINTS, law_grid
 from crgpr.gp.sparse import nystrom_reduce
 from crgpr.io import read_parquet
 from crgpr.learning import features as ft
@@ -330,13 +331,11 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
     if gp.dim == 1:
         alpha, beta = exact_weights(gp)
         dense = KernelMean.exact(gp, tol=0.0, weights=(alpha, beta))
-        ell = float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0])
-        width = min(6.0 * ell, 10.0 * float(np.ptp(Xn)))
-        grid = np.linspace(Xn.min() - width, Xn.max() + width, 4001)
+        grid = law_grid(Xn[:, 0], float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0]))
         tab = Table1D(grid, dense(grid))
         arrays = {"table_x": grid, "table_y": tab.ty}
         sets["training inputs"] = rng.uniform(grid[0], grid[-1], int(gm["check_points"]))[:, None]
-        report["approximation"] = "exact mean tabulated (4001 points, linear interpolation)"
+        report["approximation"] = f"exact mean tabulated ({TABLE_POINTS} points, linear interpolation)"
         rollout_ev: Any = lambda Z: tab(Z[:, 0])  # noqa: E731
         report["truncation_bound_over_target_std"] = 0.0
     else:

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from crgpr.gp.evaluators import KernelMean, interp_uniform, law_grid
 from crgpr.physics.params import RodParams
 
 NOMINAL_LAWS: dict[str, str] = {"n1": "obj_n1", "n2": "obj_n2", "m": "obj_m",  # law -> component
@@ -90,13 +91,23 @@ class SelectedInputs:
     JSON): the grey-box bending law m(kappa) evaluated on the objective m features. One column:
     the 1-D components' convention (values (...), like the momentum maps H_p(p)); several:
     rows (..., k). ``arclength`` (N,): the segments' s, appended as the last input (a law that
-    varies along the rod, ``arclength_input`` of the model's JSON); the rows are then (..., N, k)."""
+    varies along the rod, ``arclength_input`` of the model's JSON); the rows are then (..., N, k).
+
+    A law of (kappa, s) whose component is a posterior mean (``crgpr.gp.KernelMean``) is
+    evaluated from one table per segment: m(kappa, s_j) on the grid of the 1-D laws
+    (``law_grid``, linear interpolation), the kernel sum itself only where kappa leaves the
+    grid. The rollout's s are fixed, so this is the 1-D laws' tabulation slice by slice; the
+    posterior samples (UQ) are evaluated as they are."""
 
     def __init__(self, component: Any, columns: list[int], arclength: np.ndarray | None = None):
         self.component = component
         self.columns = list(columns)
         self.arclength = None if arclength is None else np.asarray(arclength, dtype=float)
         self.meta = getattr(component, "meta", {})
+        self._tables = None
+        if (self.arclength is not None and len(self.columns) == 1 and isinstance(component, KernelMean)
+                and component.dim == 2):
+            self._tables = SliceTables(component, self.arclength)
 
     def rewrap(self, component: Any) -> SelectedInputs:
         """The same input selection around another component (its posterior samples)."""
@@ -104,12 +115,45 @@ class SelectedInputs:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X)
+        if self._tables is not None:
+            return self._tables(X[..., self.columns[0]])
         if self.arclength is not None:
             s = np.broadcast_to(self.arclength[:, None], (*X.shape[:-1], 1))
             return self.component(np.concatenate([X[..., self.columns], s], axis=-1))
         if len(self.columns) == 1:
             return self.component(X[..., self.columns[0]])
         return self.component(X[..., self.columns])
+
+
+class SliceTables:
+    """A 2-D mean f(x, s) at fixed slices s_j, tabulated along x (``law_grid`` of its training
+    inputs' first column; linear interpolation): ``self(x)`` with x (..., J) gives
+    f(x[..., j], s_j); rows off the grid are evaluated by the mean itself."""
+
+    def __init__(self, mean: Any, slices: np.ndarray):
+        self.mean, self.slices = mean, np.asarray(slices, dtype=float)
+        x_train = mean.Z[:, 0] * mean.x_scale[0] + mean.x_mean[0]
+        self.grid = law_grid(x_train, float(mean.ell[0] * mean.x_scale[0]))
+        G, J = self.grid.size, self.slices.size
+        rows = np.stack([np.broadcast_to(self.grid, (J, G)),
+                         np.broadcast_to(self.slices[:, None], (J, G))], -1)
+        self.values = np.ascontiguousarray(mean(rows))  # (J, G)
+        self.h = float((self.grid[-1] - self.grid[0]) / (G - 1))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        J = self.slices.size
+        if x.shape[-1] != J:
+            raise ValueError(f"expected values at the {J} slices along the last axis, got {x.shape}")
+        rows = np.ascontiguousarray(np.moveaxis(x, -1, 0).reshape(J, -1))
+        out = np.empty_like(rows)
+        interp_uniform(rows, self.grid[0], self.h, self.values, False, out)
+        out = np.moveaxis(out.reshape((J, *x.shape[:-1])), 0, -1)
+        off = (x < self.grid[0]) | (x > self.grid[-1])
+        if off.any():
+            s = np.broadcast_to(self.slices, x.shape)
+            out[off] = self.mean(np.stack([x[off], s[off]], -1))
+        return out
 
 
 def position_noise_std(x: np.ndarray) -> float:

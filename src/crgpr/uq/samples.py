@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
-from numba import njit
 
 from crgpr.gp import GP
+from crgpr.gp.evaluators import interp_uniform
 from crgpr.gp.sampling import (
     CompressedSamples,
     SparsePosterior,
@@ -78,7 +78,7 @@ class TabulatedSamples:
             raise ValueError(f"expected inputs with S = {self.n_samples} rows first, got {x.shape}")
         flat = np.ascontiguousarray(x.reshape(self.n_samples, -1))
         out = np.empty_like(flat)
-        _interp_uniform(flat, self.grid[0], self.grid[1] - self.grid[0], self.values, slope, out)
+        interp_uniform(flat, self.grid[0], self.grid[1] - self.grid[0], self.values, slope, out)
         return out.reshape(x.shape)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
@@ -89,24 +89,6 @@ class TabulatedSamples:
     def slope(self, x: np.ndarray) -> np.ndarray:
         """Slope of each sample's interpolant at x[s] (0 outside), for the damping flow."""
         return self._eval(x, True)
-
-
-@njit(cache=True)
-def _interp_uniform(x, g0, dg, values, slope, out):
-    S, m = x.shape
-    G = values.shape[1]
-    for s in range(S):
-        for i in range(m):
-            r = (x[s, i] - g0) / dg
-            if not (r >= 0.0 and r <= G - 1):
-                out[s, i] = 0.0
-                continue
-            j = min(int(r), G - 2)
-            f = r - j
-            if slope:
-                out[s, i] = (values[s, j + 1] - values[s, j]) / dg
-            else:
-                out[s, i] = values[s, j] + f * (values[s, j + 1] - values[s, j])
 
 
 SampleSet = CompressedSamples | TabulatedSamples
