@@ -5,12 +5,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from crgpr.config import load_config, rod_params
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import Trajectory, simulate
 
 SMOKE = Path(__file__).resolve().parent / "smoke_config.yaml"
+
+# property tests draw the same examples on every run (the suite's outcome does not depend on
+# the run); the examples each test draws are still many and varied
+settings.register_profile("fixed", derandomize=True)
+settings.load_profile("fixed")
 
 
 @pytest.fixture(scope="session")

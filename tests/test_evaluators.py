@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, fit_gp, load_evaluator, select_inducing
-from crgpr.gp.evaluators import TABLE_POINTS, kernel_sum, kernel_sum_fast
+from crgpr.gp.evaluators import TABLE_POINTS, kernel_sum, kernel_sum_fast, law_grid
 from crgpr.learning.nominal import SelectedInputs
 
 
@@ -113,3 +113,24 @@ def test_a_law_of_kappa_and_s_is_tabulated_per_segment_as_its_mean():
     exact = mean(np.stack([rows[..., 0], np.broadcast_to(s, (6, 25))], -1))
     np.testing.assert_allclose(law(rows), exact, rtol=0, atol=1e-6 * np.ptp(exact))
     np.testing.assert_array_equal(law(rows)[0, :2], exact[0, :2])
+
+
+def test_a_law_that_varies_on_a_short_scale_is_tabulated_finely_enough():
+    """The tabulation grid keeps its step within a twentieth of the lengthscale (more than the
+    default points where the law varies on a short scale): a law of unit amplitude on a 0.4
+    lengthscale over a range of 200 is tabulated within 1e-3, where the default number of
+    points is not; a smooth law keeps the default grid."""
+    rng = np.random.default_rng(5)
+    x = np.sort(rng.uniform(-100.0, 100.0, 400))
+    gp = fit_gp(x, np.sin(x / 0.4), kernel="se", basis="none",
+                fixed={"sigma_f": 1.0, "lengthscales": 0.4 / np.std(x), "sigma_n": 1e-3})  # standardised
+    ell = float(np.ravel(gp.lengthscales)[0] * gp.x_scale[0])
+    assert ell == pytest.approx(0.4, rel=0.01)
+    grid = law_grid(x, ell)
+    assert grid.size > TABLE_POINTS and np.diff(grid).max() <= 0.05 * ell * (1 + 1e-9)
+    xs = rng.uniform(-100.0, 100.0, 500)
+    err = np.abs(Table1D.from_gp(gp, grid)(xs) - gp.predict(xs)).max()
+    coarse = np.linspace(grid[0], grid[-1], TABLE_POINTS)  # the default number of points
+    err_coarse = np.abs(Table1D.from_gp(gp, coarse)(xs) - gp.predict(xs)).max()
+    assert err < 1e-3 < err_coarse
+    assert law_grid(x, 50.0).size == TABLE_POINTS

@@ -31,7 +31,8 @@ else ``exact``; the choice is recorded as ``rollout_mean_choice``):
       min_{beta, w} |v - H beta - K_XZ w|^2 + sigma_n^2 w^T K_ZZ w.
 The DTC arrays (``dtc_Z``, ``dtc_w``, ``dtc_beta``) are stored in either case: the UQ samplers
 (``crgpr.uq.samples``) are built on that inducing set. 1D momentum models: the exact mean
-tabulated on 4001 points over the training range +- min(6 lengthscales, 10 ranges) (linear
+tabulated over the training range +- min(6 lengthscales, 10 ranges) on 4001 points, more where
+the step would exceed a twentieth of the lengthscale (``gp.evaluators.law_grid``; linear
 interpolation; 0, the prior mean, outside).
 Every approximation is measured against the dense exact posterior mean, in units of the
 target's std: at ``check_points`` random training inputs and at the ground-truth states of the
@@ -50,7 +51,7 @@ import numpy as np
 
 from crgpr.config import ConfigError, rod_params
 from crgpr.gp import GP, KernelMean, Table1D, dtc_fit, exact_weights, fit_gp
-from crgpr.gp.evaluators import TABLE_POINTS, law_grid
+from crgpr.gp.evaluators import law_grid
 from crgpr.gp.sparse import nystrom_reduce
 from crgpr.io import read_parquet
 from crgpr.learning import features as ft
@@ -335,7 +336,7 @@ def fit_model(name: str, X: np.ndarray, y: np.ndarray, spec: dict[str, Any], gm:
         tab = Table1D(grid, dense(grid))
         arrays = {"table_x": grid, "table_y": tab.ty}
         sets["training inputs"] = rng.uniform(grid[0], grid[-1], int(gm["check_points"]))[:, None]
-        report["approximation"] = f"exact mean tabulated ({TABLE_POINTS} points, linear interpolation)"
+        report["approximation"] = f"exact mean tabulated ({grid.size} points, linear interpolation)"
         rollout_ev: Any = lambda Z: tab(Z[:, 0])  # noqa: E731
         report["truncation_bound_over_target_std"] = 0.0
     else:
