@@ -2,6 +2,8 @@
 
     python benchmarks/materials_unseen.py --csv benchmarks/materials_unseen.csv
     python benchmarks/materials_unseen.py --cases defect,softvisco --csv /some/other.csv
+    python benchmarks/materials_unseen.py --cases soft_saturating --set camera.learn.record_fit.warp_terms=4 \
+        --csv benchmarks/materials_unseen_variants.csv --append
 
 (docs/materials.md, "Rods outside the study"). Each case below is a true material the study's
 six cases do not contain (another law parameter, a local defect, a combination of laws, another
@@ -12,7 +14,9 @@ release angle). For each, the study's own rules run on it as they run on a study
 and worst RMSE(theta) over the study's six test angles, the worst ``ratio_to_nominal``,
 ``law_rmse`` and ``law_band_coverage``, which laws stayed nominal, the rest curvature used, the
 damping's c, whether the record fit kept its warp, and the learn wall time. ``--keep DIR`` keeps
-the records and models there.
+the records and models there. ``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
+value read as YAML) runs a variant of the config; its rows carry the overrides in a column
+``overrides``, and ``--append`` adds them to an existing ``--csv``.
 """
 
 from __future__ import annotations
@@ -20,12 +24,14 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import yaml
 
 from crgpr.commands.materials import material_data, material_learn, material_score
 from crgpr.config import load_config
@@ -80,20 +86,45 @@ def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]
     return rows
 
 
+def overridden(cfg: dict[str, Any], sets: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The config with ``KEY=VALUE`` overrides (dotted keys that exist in it) and the overrides;
+    a malformed or unknown key exits with one line (exit code 2)."""
+    c, done = copy.deepcopy(cfg), {}
+    for item in sets:
+        key, sep, raw = item.partition("=")
+        *path, last = key.split(".")
+        d = c
+        for k in path:
+            d = d.get(k) if isinstance(d, dict) else None
+        if not sep or not isinstance(d, dict) or last not in d:
+            print(f"materials_unseen.py: --set {item!r}: not KEY=VALUE with a dotted key of the config",
+                  file=sys.stderr)
+            sys.exit(2)
+        d[last] = done[key] = yaml.safe_load(raw)
+    return c, done
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--config", default="config.yaml")
     ap.add_argument("--csv", default="benchmarks/materials_unseen.csv")
     ap.add_argument("--keep", default=None, help="directory to keep the records and models in")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
+    ap.add_argument("--append", action="store_true", help="add the rows to an existing --csv")
     args = ap.parse_args()
-    cfg = load_config(args.config)
+    cfg, sets = overridden(load_config(args.config), args.set)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         for case in args.cases.split(","):
             rows += run_case(cfg, case, root)
-    pd.DataFrame(rows).to_csv(args.csv, index=False, float_format="%.6g")
+    out = pd.DataFrame(rows)
+    if sets:
+        out["overrides"] = json.dumps(sets, sort_keys=True)
+    if args.append and Path(args.csv).is_file():
+        out = pd.concat([pd.read_csv(args.csv), out], ignore_index=True)
+    out.to_csv(args.csv, index=False, float_format="%.6g")
 
 
 if __name__ == "__main__":
