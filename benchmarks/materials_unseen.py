@@ -2,8 +2,8 @@
 
     python benchmarks/materials_unseen.py --csv benchmarks/materials_unseen.csv
     python benchmarks/materials_unseen.py --cases defect,softvisco --csv /some/other.csv
-    python benchmarks/materials_unseen.py --cases soft_saturating --set camera.learn.record_fit.warp_terms=4 \
-        --csv benchmarks/materials_unseen_variants.csv --append
+    python benchmarks/materials_unseen.py --cases soft_saturating \
+        --set "camera.learn.record_fit.warp_terms=[4]" --csv benchmarks/materials_unseen_variants.csv --append
 
 (docs/materials.md, "Rods outside the study"). Each case below is a true material the study's
 six cases do not contain (another law parameter, a local defect, a combination of laws, another
@@ -81,6 +81,7 @@ def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]
                      "nominal_laws": " ".join(man["nominal_laws"]),
                      "bending_odd_about": man.get("bending_odd_about"), "rest_degree": rest.get("degree"),
                      "damping_c": damp.get("coefficient"), "warp_kept": fit.get("kept"),
+                     "warp_terms": fit.get("warp_terms"),
                      "learn_seconds": seconds})
         print(rows[-1], flush=True)
     return rows

@@ -50,7 +50,7 @@ def main() -> None:
                 fit = json.loads(Path(f"{tmp}/model/manifest.json").read_text()).get("record_fit") or {}
             row = {"case": case, "record_fit": mode, "rmse_theta_mean": sc["rmse_theta"].mean(),
                    "worst_ratio_to_nominal": sc["ratio_to_nominal"].max(), "kept": fit.get("kept"),
-                   "heldout_log_ratio": fit.get("heldout_log_ratio"),
+                   "warp_terms": fit.get("warp_terms"), "heldout_log_ratio": fit.get("heldout_log_ratio"),
                    "heldout_log_ratio_se": fit.get("heldout_log_ratio_se"),
                    "record_rmse_learned": fit.get("rmse_learned"),
                    "record_rmse_fitted": fit.get("rmse_fitted"),

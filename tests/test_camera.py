@@ -120,9 +120,11 @@ def test_positions_are_fitted_to_their_own_record_and_a_kept_warp_is_what_the_mo
     full = read_manifest(d / "m_full")["record_fit"]
     assert full["exact_start"] and full["start_coefficients"] == [] and not rf["exact_start"]
     assert admissible(full["coefficients"]).all() and admissible(rf["coefficients"]).all()
-    K = cfg["camera"]["learn"]["record_fit"]["warp_terms"]
-    assert len(rf["coefficients"]) == K and rf["seconds"] > 0 and rf["note"]
-    assert rf["kept"] or rf["coefficients"] == [0.0] * K
+    terms = cfg["camera"]["learn"]["record_fit"]["warp_terms"]
+    assert [c["terms"] for c in rf["candidates"]] == sorted(terms) and rf["seconds"] > 0 and rf["note"]
+    assert rf["kept"] == (rf["warp_terms"] in terms) and len(rf["coefficients"]) == rf["warp_terms"]
+    assert sum(c["chosen"] for c in rf["candidates"]) == int(rf["kept"])
+    K = max(terms)
     man = read_manifest(d / "m_pos")
     def load(m: str):
         return load_evaluator(d / "m_pos" / m)

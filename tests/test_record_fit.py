@@ -109,7 +109,7 @@ def _record(P, true_warp: np.ndarray, scale: float, noise: float, seed: int) -> 
 def smoke():
     cfg = load_config("tests/smoke_config.yaml")
     rf = copy.deepcopy(cfg["camera"]["learn"]["record_fit"])
-    rf.update(start_modes=2, warp_terms=1)
+    rf.update(start_modes=2, warp_terms=[1])
     return rod_params(cfg), SimSettings(dt=1e-4, t_end=0.4, record_every=40, scheme="variational"), rf
 
 
@@ -151,7 +151,7 @@ def test_no_warp_is_kept_where_the_learned_law_is_the_true_one(smoke):
     P, sim, rf = smoke
     arr = _record(P, np.array([0.0]), 20.0, 1e-3, seed=2)
     fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf)
-    assert not fit.kept and fit.coefficients == [0.0], fit
+    assert not fit.kept and fit.coefficients == [] and fit.warp_terms == 0, fit
     assert manifest_warp(fit.to_dict()) is None
     assert fit.rmse_start_only < fit.rmse_learned  # the start is still fitted
 
@@ -160,7 +160,28 @@ def test_a_record_too_short_to_hold_out_keeps_the_law_as_learned(smoke):
     P, sim, rf = smoke
     arr = {k: v[:12] for k, v in _record(P, np.array([0.05]), 20.0, 0.0, seed=3).items()}
     fit = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), arr, P, sim, 0.0, 20.0, rf)
-    assert not fit.kept and "too short" in fit.note and fit.coefficients == [0.0]
+    assert not fit.kept and "too short" in fit.note and fit.coefficients == []
+
+
+def test_more_warp_terms_are_taken_only_where_they_forecast_better_than_fewer(smoke):
+    """Candidates of one and two terms (forward selection on the held-out blocks): a law
+    stiffer by a constant factor keeps one term; one whose stiffening grows with the curvature
+    (w = 1 + 0.02 + 0.4 u^2, u over the record's largest curvature) needs the second, which is
+    chosen over the first and found (to 0.03).
+    Every comparison is recorded."""
+    P, sim, rf = smoke
+    rf = {**rf, "warp_terms": [1, 2]}
+    stiffer = _record(P, np.array([0.08]), 20.0, 1e-4, seed=1)
+    one = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), stiffer, P, sim, 0.0, 20.0, rf)
+    assert one.kept and one.warp_terms == 1 and len(one.coefficients) == 1, one
+    assert [c["terms"] for c in one.candidates] == [1, 2] and one.candidates[0]["chosen"]
+    assert not one.candidates[1]["chosen"] and one.candidates[1]["against_terms"] == 1
+    true, scale = np.array([0.02, 0.4]), 9.0  # the 80 deg release bends the smoke rod to |kappa| < 9 1/m
+    two = fit_record(lambda W, c: _nominal_rod(P, W, scale, c), _record(P, true, scale, 1e-4, seed=4),
+                     P, sim, 0.0, scale, rf)
+    assert two.kept and two.warp_terms == 2 and two.candidates[1]["chosen"], two
+    assert np.allclose(two.coefficients, true, atol=0.03), two
+    assert np.asarray(two.coefficient_cov).shape == (2, 2)
 
 
 def test_a_warped_posterior_sample_set_is_still_a_sample_set_for_the_uq_rollout():

@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -88,6 +88,8 @@ class RecordFit:
     damping_before: float = 0.0  # c as it came in (the damping's regression and refinement) [N m^2 s]
     exact_start: bool = False  # the record's first state used as it is (full state), no start modes
     coefficient_cov: list[list[float]] | None = None  # a kept warp's coefficient covariance (warp_covariance)
+    warp_terms: int = 0  # the kept warp's number of terms K (0: none kept)
+    candidates: list[dict[str, Any]] = field(default_factory=list)  # each candidate K's held-out comparison
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -238,6 +240,19 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
     return consistent_gain(d)
 
 
+def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
+    """``residuals`` of the rows of A in one batch; where a rod leaves the physical range, row by
+    row, a diverged row's residuals set to pi (a forecast no better than any angle); None where
+    the first row (the start alone) diverges."""
+    R = residuals(A)
+    if R is not None:
+        return R
+    out = [residuals(a[None]) for a in A]
+    if out[0] is None:
+        return None
+    return np.stack([np.full_like(out[0][0], math.pi) if r is None else r[0] for r in out])
+
+
 def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
                params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
@@ -248,10 +263,18 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     bending law) and bending damping c; ``damping``: the kept damping's c (0: none, not fitted);
     ``exact_start``: the record holds the full state, its first state is used as it is;
     ``cfg``: config ``camera.learn.record_fit``. A record whose held-out part has fewer than two
-    frames per block keeps the law as learned."""
+    frames per block keeps the law as learned.
+
+    The warp's number of terms is chosen from the candidates ``warp_terms`` (ascending) by
+    forward selection on the held-out blocks: each candidate is fitted on the first part, warm
+    started from the previous one's fit (its extra terms at zero), and replaces the current
+    choice (at first: the start alone, no warp) only where it forecasts the held-out blocks
+    consistently better than that choice (``decide``). Every comparison is recorded
+    (``candidates``)."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
-    K, blocks = int(cfg["warp_terms"]), int(cfg["blocks"])
+    terms = sorted({int(k) for k in cfg["warp_terms"]})
+    K, blocks = terms[-1], int(cfg["blocks"])
     nd = int(damping > 0)
     within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
     arr = {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
@@ -259,7 +282,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     n_t, iters = arr["t"].size, int(cfg["iterations"])
     n_fit = int(round((1.0 - float(cfg["holdout_fraction"])) * n_t))
     if n_fit < 3 or n_t - n_fit < 2 * blocks:
-        return RecordFit(False, float(center), float(kappa_scale), [0.0] * K, [0.0] * (2 * J), math.nan,
+        return RecordFit(False, float(center), float(kappa_scale), [], [0.0] * (2 * J), math.nan,
                          math.nan, math.nan, math.nan, math.nan,
                          f"record too short to decide: {n_t} frames", time.perf_counter() - t_start,
                          float(damping), float(damping), bool(exact_start))
@@ -274,34 +297,52 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
-    a_warp, _ = levenberg_marquardt(part, a_start, np.ones(n_a, dtype=bool), iters)
-    both = full(np.stack([a_start, a_warp]))
-    if both is not None and not start_free.any():
-        learned = float(np.sqrt(np.mean(both[0] ** 2)))
+    fits, a_prev = [], a_start
+    for k in terms:  # nested: each candidate starts from the previous one's fit
+        a_prev, _ = levenberg_marquardt(part, a_prev, np.arange(n_a) < 2 * J + nd + k, iters)
+        fits.append(a_prev)
+    rows = _rows(full, np.stack([a_start, *fits]))
+    if rows is not None and not start_free.any():
+        learned = float(np.sqrt(np.mean(rows[0] ** 2)))
 
-    def result(kept: bool, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float,
-               note: str) -> RecordFit:
-        return RecordFit(kept, float(center), float(kappa_scale),
-                         [float(v) for v in (a[2 * J + nd:] if kept else np.zeros(K))],
-                         [float(v) for v in a[:2 * J]], learned, start_only, fitted, ratio, se, note,
-                         time.perf_counter() - t_start,
+    def result(k: int, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float,
+               note: str, candidates: list[dict[str, Any]] | None = None) -> RecordFit:
+        w0 = 2 * J + nd
+        return RecordFit(k > 0, float(center), float(kappa_scale),
+                         [float(v) for v in a[w0:w0 + k]], [float(v) for v in a[:2 * J]],
+                         learned, start_only, fitted, ratio, se, note, time.perf_counter() - t_start,
                          float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
-                         bool(exact_start))
-    if both is None:
-        return result(False, zero, math.inf, learned, math.nan, math.nan,
+                         bool(exact_start), None, k, candidates or [])
+    if rows is None:
+        return result(0, zero, math.inf, learned, math.nan, math.nan,
                       "a fitted rod left the physical range")
-    res = both.reshape(2, n_t, -1)
+    res = rows.reshape(len(terms) + 1, n_t, -1)
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
-    ratio, se, better = decide(res[0, n_fit:] ** 2, res[1, n_fit:] ** 2, blocks)
-    if not better:
-        return result(False, a_start, start_only, start_only, ratio, se,
-                      "the warp does not forecast the held-out blocks consistently better")
+    held = res[:, n_fit:] ** 2
+    chosen, candidates = 0, []  # index into rows: 0 the start alone
+    for i, k in enumerate(terms, start=1):
+        ratio, se, better = decide(held[0], held[i], blocks)
+        step = decide(held[chosen], held[i], blocks) if chosen else (ratio, se, better)
+        candidates.append({"terms": k, "heldout_log_ratio": ratio, "heldout_log_ratio_se": se,
+                           "against_terms": terms[chosen - 1] if chosen else 0,
+                           "gain_log_ratio": step[0], "gain_log_ratio_se": step[1], "chosen": False})
+        if step[2]:
+            chosen = i
+    if not chosen:
+        first = candidates[0]
+        return result(0, a_start, start_only, start_only, first["heldout_log_ratio"],
+                      first["heldout_log_ratio_se"],
+                      "no warp forecasts the held-out blocks consistently better", candidates)
+    k, pick = terms[chosen - 1], candidates[chosen - 1]
+    pick["chosen"] = True
+    ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
     last: dict[str, np.ndarray] = {}
-    a, rms = levenberg_marquardt(full, a_warp, np.ones(n_a, dtype=bool), iters, last)
-    if not admissible(a[2 * J + nd:])[0]:  # the law reversed where few samples constrain the warp
-        return result(False, a_start, start_only, start_only, ratio, se,
-                      "the fitted warp reverses the law within the covered range (w <= 0): not kept")
-    kept = result(True, a, start_only, rms, ratio, se,
-                  "kept: forecasts the held-out blocks consistently better")
-    cov = warp_covariance(last["r"], last["J"], n_t, K) if "J" in last else np.full((K, K), np.nan)
+    a, rms = levenberg_marquardt(full, fits[chosen - 1], np.arange(n_a) < 2 * J + nd + k, iters, last)
+    if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
+        return result(0, a_start, start_only, start_only, ratio, se,
+                      "the fitted warp reverses the law within the covered range (w <= 0): not kept",
+                      candidates)
+    kept = result(k, a, start_only, rms, ratio, se,
+                  f"kept ({k} terms): forecasts the held-out blocks consistently better", candidates)
+    cov = warp_covariance(last["r"], last["J"], n_t, k) if "J" in last else np.full((k, k), np.nan)
     return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])
