@@ -4,6 +4,7 @@ on the smoke config."""
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import subprocess
@@ -153,6 +154,15 @@ def test_the_study_writes_one_row_per_case_input_and_angle(study):
         assert (study / "results" / "figures" / f"material_{case}.png").read_bytes()[:4] == b"\x89PNG"
         for source in INPUTS:
             assert (study / "benchmarks" / "materials" / f"learn_{case}_{source}.tsv").is_file()
+            # the laws are learned or nominal as the data decide: the learned rod is also compared
+            # with the nominal one on the record's held-out blocks, and a fall-back keeps no law
+            man = json.loads((study / "results" / "materials" / case / "models" / source / "manifest.json"
+                              ).read_text())
+            fit = man["record_fit"]
+            assert math.isfinite(fit["nominal_log_ratio"]) and math.isfinite(fit["rmse_nominal"])
+            assert fit["nominal_fallback"] == (fit["nominal_log_ratio"] > 1.96 * fit["nominal_log_ratio_se"])
+            if fit["nominal_fallback"]:
+                assert man["models"] == [] and man["models_refused"] and not fit["kept"]
 
 
 def test_a_nominal_bending_law_is_scored_as_the_nominal_rod_with_no_band(tmp_path):

@@ -200,3 +200,28 @@ def test_a_warped_posterior_sample_set_is_still_a_sample_set_for_the_uq_rollout(
     X = np.zeros((2, 4, 5))
     X[..., 0] = np.array([-30.0, -10.0, 10.0, 30.0])
     assert np.allclose(sub(X), 1.1 * values[[1, 3]][:, [10, 30, 50, 70]], rtol=1e-12)
+
+
+def test_a_learned_law_that_forecasts_its_record_worse_than_the_nominal_rod_falls_back(smoke):
+    """The rod is the nominal one; the learned law is wrong in shape (w = 1 + 0.8 u^4), which a
+    one-term warp cannot mend: the nominal rod, its start fitted on the same first part,
+    forecasts the held-out blocks consistently better and follows the whole record better, so the
+    fit says fall back. With the roles
+    swapped (the learned law is the rod's own, the comparison rod the misshapen one) it does not."""
+    P, sim, rf = smoke
+    scale, wrong = 9.0, np.array([0.0, 0.0, 0.8])
+    arr = _record(P, np.array([0.0]), scale, 1e-4, seed=5)
+    nominal, misshapen = _nominal_rod(P, None, scale), _nominal_rod(P, wrong, scale)
+
+    def wrong_rod(W, c):
+        return LearnedRod({**misshapen.components, "obj_m": BendingWarp(misshapen.components["obj_m"], 0.0,
+                                                                          scale, W)}, "objective", P, None, c)
+    fit = fit_record(wrong_rod, arr, P, sim, 0.0, scale, rf, nominal_rod=nominal)
+    assert fit.nominal_fallback and not fit.kept and fit.coefficients == [], fit
+    assert fit.nominal_log_ratio > 1.96 * fit.nominal_log_ratio_se and fit.rmse_nominal < fit.rmse_compared
+    right = fit_record(lambda W, c: _nominal_rod(P, W, scale, c), arr, P, sim, 0.0, scale, rf,
+                       nominal_rod=misshapen)
+    assert not right.nominal_fallback and right.nominal_log_ratio < 0
+    assert right.rmse_compared < right.rmse_nominal
+    unchecked = fit_record(lambda W, c: _nominal_rod(P, W, scale, c), arr, P, sim, 0.0, scale, rf)
+    assert not unchecked.nominal_fallback and math.isnan(unchecked.nominal_log_ratio)  # no nominal rod given

@@ -43,10 +43,13 @@ The learned rod is then fitted to its own record by output error (``camera.learn
 ``learning.record_fit``): from positions the record's start, from the full state its recorded
 start as it is; the size of a kept damping (which the regression underestimates, and which a
 bending law left nominal biases); and a warp of the bending law, kept only where it forecasts
-the record's held-out last part better (manifest ``record_fit``, ``bending_damping.coefficient``;
-every loader of the directory applies a kept warp and the fitted c; ``laws.parquet`` shows the
-warped law, with the warp's coefficient covariance in its band, also where the bending law
-itself is the nominal one).
+the record's held-out last part better, with as many terms as that part supports (manifest
+``record_fit``, ``bending_damping.coefficient``; every loader of the directory applies a kept
+warp and the fitted c; ``laws.parquet`` shows the warped law, with the warp's coefficient
+covariance in its band, also where the bending law itself is the nominal one). Where the laws
+are learned or nominal as the data decide (``nominal_laws: auto``), the rod with every law
+nominal forecasts the same held-out part too; where it does so consistently better, every law
+is taken nominal (the learned ones listed in the manifest's ``models_refused``).
 """
 
 from __future__ import annotations
@@ -301,15 +304,21 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if damping is not None and damping.kept and not record_fit:  # else the record fit sizes c (with the law)
         rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
-    fit = None
+    fit, refused = None, []
     if record_fit:
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
         fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
                           float(np.max(np.abs(kappa - center))),
-                          0.0 if damping is None else damping.coefficient, kind == "full_state")
+                          0.0 if damping is None else damping.coefficient, kind == "full_state",
+                          cam["nominal_laws"] == "auto")
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
+        if fit.nominal_fallback:  # the learned laws forecast the record worse than the nominal rod
+            refused, trained = trained, []
+            grey = {**grey, "nominal_laws": list(NOMINAL_LAWS)}
+            if damping is not None:
+                damping = replace(damping, kept=False, coefficient=0.0)
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
                        None if fit is None else manifest_warp(fit.to_dict()),
                        None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"],
@@ -325,7 +334,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,
                 "bending_damping": None if damping is None else damping.to_dict(),
                 "record_fit": None if fit is None else fit.to_dict(),
-                "models": trained, **grey, **laws,
+                "models": trained, "models_refused": refused, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
                 "model_reports": reports, "seed": seed,
@@ -347,18 +356,22 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
-                center: float, kappa_scale: float, damping: float, exact_start: bool) -> RecordFit:
+                center: float, kappa_scale: float, damping: float, exact_start: bool,
+                against_nominal: bool) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
-    full state: ``exact_start``)."""
+    full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
+    data decide, ``nominal_laws: auto``) the learned rod is also compared with the nominal one."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
         return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W)},
                           "objective", params, None, c)
+    nominal = (LearnedRod({c: NominalLaw(k, params) for k, c in NOMINAL_LAWS.items()}, "objective", params,
+                          None, 0.0) if against_nominal else None)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start)
+                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start, nominal)
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

@@ -34,11 +34,24 @@ Parameters (``RecordFit``):
 Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
 at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
 (``learned.rollout``). Decision from the data (``decide``): the start alone and the start with
-the warp are fitted on the first 1 - f of the record and compared on its last f, cut into
-``blocks`` contiguous blocks (``laws.consistent_gain``: the warp is kept only where it forecasts
-the held-out blocks consistently better); a kept warp is then refitted on the whole record.
-Otherwise the law stays as the regression learned it. The damping's size is free in both fits
-(the damping itself was decided by its own held-out blocks); the fit that is kept sets it.
+the warp of each candidate number of terms K (``warp_terms``, fewer first, each warm started
+from the previous fit) are fitted on the first 1 - f of the record and compared on its last f,
+cut into ``blocks`` contiguous blocks (``laws.consistent_gain``). Forward selection: a candidate
+replaces the current choice (at first the start alone) only where it forecasts the held-out
+blocks consistently better than that choice; a chosen warp is then refitted on the whole
+record. Where none is chosen the law stays as the regression learned it. The damping's size is
+free in every fit (the damping itself was decided by its own held-out blocks); the fit that is
+kept sets it.
+
+Against the nominal rod (``_against_nominal``): the rod with every law nominal, its start fitted
+on the same first part, is rolled out over the same record. The learned rod as chosen above
+(its start and warp as fitted on the first part) is refused, and ``crgpr learn`` keeps every
+law nominal (``nominal_fallback``), where the nominal rod forecasts the held-out blocks
+consistently better, or where it reproduces the whole record with a smaller RMSE of theta: the
+learned laws were regressed on that whole record, so a learned rod that follows it worse than
+the nominal rod does has laws the data do not pin down (a softening law attenuated by the
+curvature's errors in variables, say). A law the data cannot pin down falls back to the
+nominal one.
 """
 
 from __future__ import annotations
@@ -90,6 +103,11 @@ class RecordFit:
     coefficient_cov: list[list[float]] | None = None  # a kept warp's coefficient covariance (warp_covariance)
     warp_terms: int = 0  # the kept warp's number of terms K (0: none kept)
     candidates: list[dict[str, Any]] = field(default_factory=list)  # each candidate K's held-out comparison
+    nominal_fallback: bool = False  # the nominal rod forecasts or follows the record better: laws nominal
+    nominal_log_ratio: float = math.nan  # mean per-block log(learned / nominal held-out error) [-]
+    nominal_log_ratio_se: float = math.nan  # its standard error [-]
+    rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record, its start fitted [rad]
+    rmse_compared: float = math.nan  # the same for the learned rod as compared with it [rad]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -240,6 +258,31 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
     return consistent_gain(d)
 
 
+def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, arr: dict[str, np.ndarray],
+                     params: RodParams, settings: SimSettings, J: int, n_fit: int, n_t: int,
+                     exact_start: bool, inputs: Inputs | None, ports: Ports | None, iters: int,
+                     blocks: int) -> dict[str, Any]:
+    """The nominal rod on the same record: its start fitted on the first ``n_fit`` frames (none
+    with ``exact_start``), compared with the learned rod's residuals ``learned`` (n_t, nodes):
+    held out (``decide``, the nominal rod as the richer side) and over the whole record (RMSE).
+    A nominal rod that leaves the physical range is not taken."""
+    def model_for(W: np.ndarray, c: float) -> LearnedRod:
+        return nominal_rod
+    part = record_residuals(model_for, arr, params, settings, J, n_fit, 0.0, exact_start, inputs, ports)
+    full = record_residuals(model_for, arr, params, settings, J, n_t, 0.0, exact_start, inputs, ports)
+    a0 = np.zeros(2 * J)
+    a = levenberg_marquardt(part, a0, np.ones(2 * J, dtype=bool), iters)[0] if J else a0
+    r = full(a[None])
+    rmse_learned = float(np.sqrt(np.mean(learned**2)))
+    if r is None:
+        return {"nominal_fallback": False, "rmse_nominal": math.inf, "rmse_compared": rmse_learned}
+    r = r.reshape(n_t, -1)
+    ratio, se, better = decide(learned[n_fit:] ** 2, r[n_fit:] ** 2, blocks)
+    rmse = float(np.sqrt(np.mean(r**2)))
+    return {"nominal_fallback": better or rmse < rmse_learned, "nominal_log_ratio": ratio,
+            "nominal_log_ratio_se": se, "rmse_nominal": rmse, "rmse_compared": rmse_learned}
+
+
 def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
     """``residuals`` of the rows of A in one batch; where a rod leaves the physical range, row by
     row, a diverged row's residuals set to pi (a forecast no better than any angle); None where
@@ -256,7 +299,8 @@ def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -
 def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
                params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
-               damping: float = 0.0, exact_start: bool = False) -> RecordFit:
+               damping: float = 0.0, exact_start: bool = False,
+               nominal_rod: LearnedRod | None = None) -> RecordFit:
     """The module's fit and decision on the training record ``arr`` (prefilter or
     ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
     ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K) (``BendingWarp`` of its
@@ -270,7 +314,12 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     started from the previous one's fit (its extra terms at zero), and replaces the current
     choice (at first: the start alone, no warp) only where it forecasts the held-out blocks
     consistently better than that choice (``decide``). Every comparison is recorded
-    (``candidates``)."""
+    (``candidates``).
+
+    ``nominal_rod`` (the rod with every law nominal and no learned damping): its start is fitted
+    on the same first part and its held-out blocks are compared with the chosen learned rod's;
+    where the nominal rod forecasts them consistently better, or reproduces the whole record with
+    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal)."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -328,21 +377,32 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                            "gain_log_ratio": step[0], "gain_log_ratio_se": step[1], "chosen": False})
         if step[2]:
             chosen = i
+    if nominal_rod is not None:
+        nominal = _against_nominal(nominal_rod, res[chosen], arr, params, settings, J, n_fit, n_t,
+                                   exact_start, inputs, ports, iters, blocks)
+        if nominal["nominal_fallback"]:
+            return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
+                                  "the nominal rod forecasts the held-out blocks consistently better or "
+                                  "reproduces the record better: every law nominal", candidates), **nominal)
+    else:
+        nominal = {}
     if not chosen:
         first = candidates[0]
-        return result(0, a_start, start_only, start_only, first["heldout_log_ratio"],
-                      first["heldout_log_ratio_se"],
-                      "no warp forecasts the held-out blocks consistently better", candidates)
+        return replace(result(0, a_start, start_only, start_only, first["heldout_log_ratio"],
+                              first["heldout_log_ratio_se"],
+                              "no warp forecasts the held-out blocks consistently better", candidates),
+                       **nominal)
     k, pick = terms[chosen - 1], candidates[chosen - 1]
     pick["chosen"] = True
     ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
     last: dict[str, np.ndarray] = {}
     a, rms = levenberg_marquardt(full, fits[chosen - 1], np.arange(n_a) < 2 * J + nd + k, iters, last)
     if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
-        return result(0, a_start, start_only, start_only, ratio, se,
-                      "the fitted warp reverses the law within the covered range (w <= 0): not kept",
-                      candidates)
-    kept = result(k, a, start_only, rms, ratio, se,
-                  f"kept ({k} terms): forecasts the held-out blocks consistently better", candidates)
+        return replace(result(0, a_start, start_only, start_only, ratio, se,
+                              "the fitted warp reverses the law within the covered range (w <= 0): "
+                              "not kept", candidates), **nominal)
+    kept = replace(result(k, a, start_only, rms, ratio, se,
+                          f"kept ({k} terms): forecasts the held-out blocks consistently better",
+                          candidates), **nominal)
     cov = warp_covariance(last["r"], last["J"], n_t, k) if "J" in last else np.full((k, k), np.nan)
     return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])
