@@ -258,19 +258,20 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
     return consistent_gain(d)
 
 
-def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, arr: dict[str, np.ndarray],
-                     params: RodParams, settings: SimSettings, J: int, n_fit: int, n_t: int,
-                     exact_start: bool, inputs: Inputs | None, ports: Ports | None, iters: int,
-                     blocks: int) -> dict[str, Any]:
+def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.ndarray,
+                     arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings, J: int,
+                     n_fit: int, n_t: int, exact_start: bool, inputs: Inputs | None, ports: Ports | None,
+                     iters: int, blocks: int) -> dict[str, Any]:
     """The nominal rod on the same record: its start fitted on the first ``n_fit`` frames (none
-    with ``exact_start``), compared with the learned rod's residuals ``learned`` (n_t, nodes):
+    with ``exact_start``; from the learned rod's fitted start corrections ``start`` (2 J,): both
+    correct the same derived start), compared with the learned rod's residuals ``learned`` (n_t, nodes):
     held out (``decide``, the nominal rod as the richer side) and over the whole record (RMSE).
     A nominal rod that leaves the physical range is not taken."""
     def model_for(W: np.ndarray, c: float) -> LearnedRod:
         return nominal_rod
     part = record_residuals(model_for, arr, params, settings, J, n_fit, 0.0, exact_start, inputs, ports)
     full = record_residuals(model_for, arr, params, settings, J, n_t, 0.0, exact_start, inputs, ports)
-    a0 = np.zeros(2 * J)
+    a0 = np.asarray(start, dtype=float)[:2 * J]
     a = levenberg_marquardt(part, a0, np.ones(2 * J, dtype=bool), iters)[0] if J else a0
     r = full(a[None])
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
@@ -378,7 +379,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         if step[2]:
             chosen = i
     if nominal_rod is not None:
-        nominal = _against_nominal(nominal_rod, res[chosen], arr, params, settings, J, n_fit, n_t,
+        nominal = _against_nominal(nominal_rod, res[chosen], a_start, arr, params, settings, J, n_fit, n_t,
                                    exact_start, inputs, ports, iters, blocks)
         if nominal["nominal_fallback"]:
             return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
