@@ -308,10 +308,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if record_fit:
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
+        learned_any = bool(trained) or (damping is not None and damping.kept)  # else: the nominal rod
         fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
                           float(np.max(np.abs(kappa - center))),
                           0.0 if damping is None else damping.coefficient, kind == "full_state",
-                          cam["nominal_laws"] == "auto")
+                          cam["nominal_laws"] == "auto" and learned_any)
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
         if fit.nominal_fallback:  # the learned laws forecast the record worse than the nominal rod
@@ -361,7 +362,8 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
-    data decide, ``nominal_laws: auto``) the learned rod is also compared with the nominal one."""
+    data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
+    also compared with the nominal one."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
 

@@ -34,24 +34,25 @@ Parameters (``RecordFit``):
 Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
 at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
 (``learned.rollout``). Decision from the data (``decide``): the start alone and the start with
-the warp of each candidate number of terms K (``warp_terms``, fewer first, each warm started
-from the previous fit) are fitted on the first 1 - f of the record and compared on its last f,
-cut into ``blocks`` contiguous blocks (``laws.consistent_gain``). Forward selection: a candidate
+the warp of each candidate number of terms K (``warp_terms``; each from the start-alone fit,
+all candidates side by side in the same batched rollouts) are fitted on the first 1 - f of the
+record and compared on its last f, cut into ``blocks`` contiguous blocks
+(``laws.consistent_gain``). Forward selection: a candidate
 replaces the current choice (at first the start alone) only where it forecasts the held-out
 blocks consistently better than that choice; a chosen warp is then refitted on the whole
 record. Where none is chosen the law stays as the regression learned it. The damping's size is
 free in every fit (the damping itself was decided by its own held-out blocks); the fit that is
 kept sets it.
 
-Against the nominal rod (``_against_nominal``): the rod with every law nominal, its start fitted
-on the same first part, is rolled out over the same record. The learned rod as chosen above
-(its start and warp as fitted on the first part) is refused, and ``crgpr learn`` keeps every
-law nominal (``nominal_fallback``), where the nominal rod forecasts the held-out blocks
-consistently better, or where it reproduces the whole record with a smaller RMSE of theta: the
+Against the nominal rod (``_against_nominal``): the rod with every law nominal is rolled out over
+the same record from the learned rod's start (as fitted on the first part). The learned rod as
+chosen above (its start and warp as fitted on the first part) is refused, and ``crgpr learn``
+keeps every law nominal (``nominal_fallback``), where the nominal rod forecasts the held-out
+blocks consistently better, or follows the whole record with a smaller RMSE of theta: the
 learned laws were regressed on that whole record, so a learned rod that follows it worse than
 the nominal rod does has laws the data do not pin down (a softening law attenuated by the
-curvature's errors in variables, say). A law the data cannot pin down falls back to the
-nominal one.
+curvature's errors in variables, say). Sharing the learned rod's start favours the learned rod:
+the fall-back is taken only where the nominal rod is better despite it.
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ class RecordFit:
     nominal_fallback: bool = False  # the nominal rod forecasts or follows the record better: laws nominal
     nominal_log_ratio: float = math.nan  # mean per-block log(learned / nominal held-out error) [-]
     nominal_log_ratio_se: float = math.nan  # its standard error [-]
-    rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record, its start fitted [rad]
+    rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record (learned start) [rad]
     rmse_compared: float = math.nan  # the same for the learned rod as compared with it [rad]
 
     def to_dict(self) -> dict[str, Any]:
@@ -185,42 +186,91 @@ def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0
     a0: Levenberg-Marquardt with forward-difference Jacobians, each evaluation (a point and its
     perturbations) one call of ``residuals``. Returns (parameters, RMS residual); the start's
     RMS is inf where the first evaluation diverges. ``final`` (a dict) receives the residuals
-    ``r`` and the Jacobian ``J`` (columns: the free parameters) at the returned point."""
-    idx = np.flatnonzero(free)
-    if idx.size == 0:
-        r = residuals(np.asarray(a0, dtype=float)[None])
-        return np.asarray(a0, dtype=float).copy(), math.inf if r is None else math.sqrt(float(np.mean(r**2)))
+    ``r`` and the Jacobian ``J`` (columns: the free parameters) at the returned point. One
+    problem of ``levenberg_marquardt_batch``."""
+    (a, rms), = levenberg_marquardt_batch(residuals, [a0], [free], iterations,
+                                          None if final is None else [final])
+    return a, rms
 
-    def evaluate(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        A = np.repeat(a[None], idx.size + 1, axis=0)
-        A[1 + np.arange(idx.size), idx] += FD_STEP
-        R = residuals(A)
-        return None if R is None else (R[0], ((R[1:] - R[0]) / FD_STEP).T)
-    a = np.asarray(a0, dtype=float).copy()
-    ev = evaluate(a)
-    if ev is None:
-        return a, math.inf
-    r, J = ev
-    cost, lam = float(np.mean(r**2)), 1e-3
-    for _ in range(iterations):
-        JTJ, g = J.T @ J, J.T @ r
-        for _ in range(4):
-            step = np.linalg.solve(JTJ + lam * np.diag(np.diag(JTJ) + 1e-12), -g)
-            trial = a.copy()
-            trial[idx] += step
-            ev = evaluate(trial)
-            if ev is not None and float(np.mean(ev[0] ** 2)) < cost:
-                break
-            lam *= 10.0
+
+class _Problem:
+    """The state of one problem of ``levenberg_marquardt_batch``."""
+
+    def __init__(self, a0: np.ndarray, free: np.ndarray):
+        self.a = np.asarray(a0, dtype=float).copy()
+        self.idx = np.flatnonzero(free)
+        self.r = self.J = self.trial = None
+        self.cost, self.lam, self.it, self.tries, self.done = math.inf, 1e-3, 0, 0, False
+
+    def rows(self, point: np.ndarray) -> np.ndarray:
+        """The point and its forward-difference perturbations (1 + free parameters rows)."""
+        A = np.repeat(point[None], self.idx.size + 1, axis=0)
+        A[1 + np.arange(self.idx.size), self.idx] += FD_STEP
+        return A
+
+    def propose(self) -> np.ndarray:
+        JTJ, g = self.J.T @ self.J, self.J.T @ self.r
+        step = np.linalg.solve(JTJ + self.lam * np.diag(np.diag(JTJ) + 1e-12), -g)
+        self.trial = self.a.copy()
+        self.trial[self.idx] += step
+        return self.rows(self.trial)
+
+
+def _evaluate_all(residuals: Callable[[np.ndarray], np.ndarray | None], blocks: list[np.ndarray]
+                  ) -> list[np.ndarray | None]:
+    """``residuals`` of each block of rows, all in one call; where a rod leaves the physical range,
+    block by block (a block with a diverged rod gives None)."""
+    if not blocks:
+        return []
+    R = residuals(np.concatenate(blocks))
+    if R is None:
+        return [residuals(b) for b in blocks] if len(blocks) > 1 else [None]
+    return np.split(R, np.cumsum([b.shape[0] for b in blocks])[:-1])
+
+
+def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | None],
+                              starts: list[np.ndarray], frees: list[np.ndarray], iterations: int,
+                              finals: list[dict[str, np.ndarray]] | None = None
+                              ) -> list[tuple[np.ndarray, float]]:
+    """``levenberg_marquardt`` of several problems on the same residual function, each problem's
+    points and Jacobian perturbations evaluated together in one call per round (a rollout's
+    cost is mostly per time step, not per rod: problems fitted side by side cost little more
+    than one). Each problem takes the steps it would take alone: per iteration up to four trial
+    damping factors lambda (x10 after a trial that diverges or does not lower the cost), /3 after
+    an accepted step; it stops after ``iterations`` accepted steps, four refused trials, or a
+    cost gain below 1e-4 of the cost. Returns (parameters, RMS residual) per problem."""
+    probs = [_Problem(a0, f) for a0, f in zip(starts, frees, strict=True)]
+    active = [p for p in probs if p.idx.size]
+    for p in probs:
+        if not p.idx.size:  # nothing to fit: one evaluation
+            r = residuals(p.a[None])
+            p.cost = math.inf if r is None else float(np.mean(r**2))
+            p.done = True
+    for p, ev in zip(active, _evaluate_all(residuals, [p.rows(p.a) for p in active]), strict=True):
+        if ev is None:
+            p.done = True
         else:
+            p.r, p.J = ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
+            p.cost = float(np.mean(p.r**2))
+            p.done = iterations <= 0
+    while True:
+        live = [p for p in active if not p.done]
+        if not live:
             break
-        gain = cost - float(np.mean(ev[0] ** 2))
-        a, (r, J), cost, lam = trial, ev, float(np.mean(ev[0] ** 2)), lam / 3.0
-        if gain < 1e-4 * cost:
-            break
-    if final is not None:
-        final.update(r=r, J=J)
-    return a, math.sqrt(cost)
+        for p, ev in zip(live, _evaluate_all(residuals, [p.propose() for p in live]), strict=True):
+            new = math.inf if ev is None else float(np.mean(ev[0] ** 2))
+            if new < p.cost:
+                gain = p.cost - new
+                p.a, p.r, p.J = p.trial, ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
+                p.cost, p.lam, p.it, p.tries = new, p.lam / 3.0, p.it + 1, 0
+                p.done = p.it >= iterations or gain < 1e-4 * p.cost
+            else:
+                p.lam, p.tries = p.lam * 10.0, p.tries + 1
+                p.done = p.tries >= 4
+    for k, p in enumerate(probs):
+        if finals is not None and p.J is not None:
+            finals[k].update(r=p.r, J=p.J)
+    return [(p.a, math.sqrt(p.cost)) for p in probs]
 
 
 def correlation_time(R: np.ndarray, axis: int) -> float:
@@ -261,19 +311,17 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
 def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.ndarray,
                      arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings, J: int,
                      n_fit: int, n_t: int, exact_start: bool, inputs: Inputs | None, ports: Ports | None,
-                     iters: int, blocks: int) -> dict[str, Any]:
-    """The nominal rod on the same record: its start fitted on the first ``n_fit`` frames (none
-    with ``exact_start``; from the learned rod's fitted start corrections ``start`` (2 J,): both
-    correct the same derived start), compared with the learned rod's residuals ``learned`` (n_t, nodes):
-    held out (``decide``, the nominal rod as the richer side) and over the whole record (RMSE).
-    A nominal rod that leaves the physical range is not taken."""
+                     blocks: int) -> dict[str, Any]:
+    """The nominal rod on the same record, from the learned rod's start (its corrections
+    ``start`` (2 J,) as fitted on the first ``n_fit`` frames: they correct the derived start's
+    errors, which are the data's; the recorded start with ``exact_start``), compared with the
+    learned rod's residuals ``learned`` (n_t, nodes): held out (``decide``, the nominal rod as the
+    richer side) and over the whole record (RMSE). A nominal rod that leaves the physical range
+    is not taken."""
     def model_for(W: np.ndarray, c: float) -> LearnedRod:
         return nominal_rod
-    part = record_residuals(model_for, arr, params, settings, J, n_fit, 0.0, exact_start, inputs, ports)
     full = record_residuals(model_for, arr, params, settings, J, n_t, 0.0, exact_start, inputs, ports)
-    a0 = np.asarray(start, dtype=float)[:2 * J]
-    a = levenberg_marquardt(part, a0, np.ones(2 * J, dtype=bool), iters)[0] if J else a0
-    r = full(a[None])
+    r = full(np.asarray(start, dtype=float)[None, :2 * J])
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
     if r is None:
         return {"nominal_fallback": False, "rmse_nominal": math.inf, "rmse_compared": rmse_learned}
@@ -311,14 +359,14 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     frames per block keeps the law as learned.
 
     The warp's number of terms is chosen from the candidates ``warp_terms`` (ascending) by
-    forward selection on the held-out blocks: each candidate is fitted on the first part, warm
-    started from the previous one's fit (its extra terms at zero), and replaces the current
-    choice (at first: the start alone, no warp) only where it forecasts the held-out blocks
+    forward selection on the held-out blocks: each candidate is fitted on the first part from the
+    start-alone fit (the candidates side by side, ``levenberg_marquardt_batch``), and replaces the
+    current choice (at first: the start alone, no warp) only where it forecasts the held-out blocks
     consistently better than that choice (``decide``). Every comparison is recorded
     (``candidates``).
 
-    ``nominal_rod`` (the rod with every law nominal and no learned damping): its start is fitted
-    on the same first part and its held-out blocks are compared with the chosen learned rod's;
+    ``nominal_rod`` (the rod with every law nominal and no learned damping), from the learned
+    rod's fitted start: its held-out blocks are compared with the chosen learned rod's;
     where the nominal rod forecasts them consistently better, or reproduces the whole record with
     a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal)."""
     t_start = time.perf_counter()
@@ -347,10 +395,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
-    fits, a_prev = [], a_start
-    for k in terms:  # nested: each candidate starts from the previous one's fit
-        a_prev, _ = levenberg_marquardt(part, a_prev, np.arange(n_a) < 2 * J + nd + k, iters)
-        fits.append(a_prev)
+    fits = [a for a, _ in levenberg_marquardt_batch(  # each from the start-alone fit, side by side
+        part, [a_start] * len(terms), [np.arange(n_a) < 2 * J + nd + k for k in terms], iters)]
     rows = _rows(full, np.stack([a_start, *fits]))
     if rows is not None and not start_free.any():
         learned = float(np.sqrt(np.mean(rows[0] ** 2)))
@@ -380,7 +426,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
             chosen = i
     if nominal_rod is not None:
         nominal = _against_nominal(nominal_rod, res[chosen], a_start, arr, params, settings, J, n_fit, n_t,
-                                   exact_start, inputs, ports, iters, blocks)
+                                   exact_start, inputs, ports, blocks)
         if nominal["nominal_fallback"]:
             return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
                                   "the nominal rod forecasts the held-out blocks consistently better or "
