@@ -44,15 +44,14 @@ record. Where none is chosen the law stays as the regression learned it. The dam
 free in every fit (the damping itself was decided by its own held-out blocks); the fit that is
 kept sets it.
 
-Against the nominal rod (``_against_nominal``): the rod with every law nominal is rolled out over
-the same record from the learned rod's start (as fitted on the first part). The learned rod as
-chosen above (its start and warp as fitted on the first part) is refused, and ``crgpr learn``
-keeps every law nominal (``nominal_fallback``), where the nominal rod forecasts the held-out
-blocks consistently better, or follows the whole record with a smaller RMSE of theta: the
-learned laws were regressed on that whole record, so a learned rod that follows it worse than
-the nominal rod does has laws the data do not pin down (a softening law attenuated by the
-curvature's errors in variables, say). Sharing the learned rod's start favours the learned rod:
-the fall-back is taken only where the nominal rod is better despite it.
+Against the nominal rod (``_against_nominal``): the rod with every law nominal, its start fitted
+on the same first part (from the learned rod's), is rolled out over the same record. The learned
+rod as chosen above (its start and warp as fitted on the first part) is refused, and ``crgpr
+learn`` keeps every law nominal (``nominal_fallback``), where the nominal rod forecasts the
+held-out blocks consistently better, or follows the whole record with a smaller RMSE of theta:
+the learned laws were regressed on that whole record, so a learned rod that follows it worse
+than the nominal rod does has laws the data do not pin down (a softening law attenuated by the
+curvature's errors in variables, say).
 """
 
 from __future__ import annotations
@@ -107,7 +106,7 @@ class RecordFit:
     nominal_fallback: bool = False  # the nominal rod forecasts or follows the record better: laws nominal
     nominal_log_ratio: float = math.nan  # mean per-block log(learned / nominal held-out error) [-]
     nominal_log_ratio_se: float = math.nan  # its standard error [-]
-    rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record (learned start) [rad]
+    rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record, start fitted [rad]
     rmse_compared: float = math.nan  # the same for the learned rod as compared with it [rad]
 
     def to_dict(self) -> dict[str, Any]:
@@ -311,17 +310,20 @@ def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float,
 def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.ndarray,
                      arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings, J: int,
                      n_fit: int, n_t: int, exact_start: bool, inputs: Inputs | None, ports: Ports | None,
-                     blocks: int) -> dict[str, Any]:
-    """The nominal rod on the same record, from the learned rod's start (its corrections
-    ``start`` (2 J,) as fitted on the first ``n_fit`` frames: they correct the derived start's
-    errors, which are the data's; the recorded start with ``exact_start``), compared with the
-    learned rod's residuals ``learned`` (n_t, nodes): held out (``decide``, the nominal rod as the
-    richer side) and over the whole record (RMSE). A nominal rod that leaves the physical range
-    is not taken."""
+                     iters: int, blocks: int) -> dict[str, Any]:
+    """The nominal rod on the same record: its start fitted on the first ``n_fit`` frames, from
+    the learned rod's fitted corrections ``start`` (2 J,) (the recorded start with
+    ``exact_start``), compared with the learned rod's residuals ``learned`` (n_t, nodes): held
+    out (``decide``, the nominal rod as the richer side) and over the whole record (RMSE). A
+    nominal rod that leaves the physical range is not taken."""
     def model_for(W: np.ndarray, c: float) -> LearnedRod:
         return nominal_rod
+    part = record_residuals(model_for, arr, params, settings, J, n_fit, 0.0, exact_start, inputs, ports)
     full = record_residuals(model_for, arr, params, settings, J, n_t, 0.0, exact_start, inputs, ports)
-    r = full(np.asarray(start, dtype=float)[None, :2 * J])
+    a = np.asarray(start, dtype=float)[:2 * J]
+    if J:
+        a = levenberg_marquardt(part, a, np.ones(2 * J, dtype=bool), iters)[0]
+    r = full(a[None])
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
     if r is None:
         return {"nominal_fallback": False, "rmse_nominal": math.inf, "rmse_compared": rmse_learned}
@@ -365,8 +367,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     consistently better than that choice (``decide``). Every comparison is recorded
     (``candidates``).
 
-    ``nominal_rod`` (the rod with every law nominal and no learned damping), from the learned
-    rod's fitted start: its held-out blocks are compared with the chosen learned rod's;
+    ``nominal_rod`` (the rod with every law nominal and no learned damping), its start fitted on
+    the same first part: its held-out blocks are compared with the chosen learned rod's;
     where the nominal rod forecasts them consistently better, or reproduces the whole record with
     a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal)."""
     t_start = time.perf_counter()
@@ -426,7 +428,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
             chosen = i
     if nominal_rod is not None:
         nominal = _against_nominal(nominal_rod, res[chosen], a_start, arr, params, settings, J, n_fit, n_t,
-                                   exact_start, inputs, ports, blocks)
+                                   exact_start, inputs, ports, iters, blocks)
         if nominal["nominal_fallback"]:
             return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
                                   "the nominal rod forecasts the held-out blocks consistently better or "
