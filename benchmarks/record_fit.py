@@ -10,8 +10,8 @@ study's own rules (``commands.materials.material_learn`` / ``material_score``), 
 config's ``camera.learn.record_fit`` and once with its ``mode: none`` (the law as the regression
 learned it), and scored at the study's six test angles. One row per (case, mode) is written to
 ``--csv``: mean RMSE(theta) over the angles, the worst ``ratio_to_nominal``, the record fit's
-decision (kept, held-out log error ratio and se), its RMSE of theta over the training record
-before and after, and its wall time.
+decision (kept, the warp's number of terms, held-out log error ratio and se), its RMSE of theta
+over the training record before and after, and its wall time.
 """
 
 from __future__ import annotations
@@ -34,12 +34,13 @@ def main() -> None:
     ap.add_argument("--cases", default="linear,exponential,saturating,precurved,graded,viscoelastic")
     ap.add_argument("--config", default="config.yaml")
     ap.add_argument("--csv", default="benchmarks/record_fit.csv")
+    ap.add_argument("--modes", default="none,auto", help="record_fit modes to run, in this order")
     args = ap.parse_args()
     cfg = load_config(args.config)
     rows = []
     for case in args.cases.split(","):
         src = Path(args.results) / "materials" / case
-        for mode in ("none", "auto"):
+        for mode in args.modes.split(","):
             c = copy.deepcopy(cfg)
             c["camera"]["learn"]["record_fit"]["mode"] = mode
             with tempfile.TemporaryDirectory() as tmp:
