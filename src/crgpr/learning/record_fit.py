@@ -335,13 +335,10 @@ def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.nda
 
 
 def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
-    """``residuals`` of the rows of A in one batch; where a rod leaves the physical range, row by
-    row, a diverged row's residuals set to pi (a forecast no better than any angle); None where
-    the first row (the start alone) diverges."""
-    R = residuals(A)
-    if R is not None:
-        return R
-    out = [residuals(a[None]) for a in A]
+    """``residuals`` of the rows of A in one batch (``_evaluate_all``, one block per row); a
+    diverged row's residuals set to pi (a forecast no better than any angle); None where the
+    first row (the start alone) diverges."""
+    out = _evaluate_all(residuals, [a[None] for a in A])
     if out[0] is None:
         return None
     return np.stack([np.full_like(out[0][0], math.pi) if r is None else r[0] for r in out])
