@@ -66,6 +66,40 @@ def test_targets_recover_the_discrete_variational_derivative(smoke):
     np.testing.assert_allclose(f_th[:, 1:], -hz[:, 1:, 2], atol=1e-9)
 
 
+def test_compiled_segment_table_and_force_assembly_match_their_array_definitions(smoke):
+    """The rollout's compiled segment quantities and force assembly (``segment_table``,
+    ``objective_forces``) are the array formulas of the features module: slopes, mid-segment angle,
+    strains, kappa's ghost neighbours; forces_from_q of the resultants in the lab frame and the
+    moment balance of theta_forces_objective. Also batched (leading axes)."""
+    _, traj, _ = smoke
+    P = traj.params
+    q = traj.q[::7]
+    x, y, th = q[..., 0], q[..., 1], q[..., 2]
+    sg = ft.segments(x, y, th, P.ds)
+    ex, ey = np.diff(x, axis=-1) / P.ds, np.diff(y, axis=-1) / P.ds
+    tb = 0.5 * (th[..., 1:] + th[..., :-1])
+    k = np.diff(th, axis=-1) / P.ds
+    ref = {"ex": ex, "ey": ey, "theta_bar": tb, "cos": np.cos(tb), "sin": np.sin(tb), "kappa": k,
+           "nu1": np.cos(tb) * ex + np.sin(tb) * ey, "nu2": -np.sin(tb) * ex + np.cos(tb) * ey,
+           "kappa_jm1": np.concatenate([k[:, :1], k[:, :-1]], axis=-1),
+           "kappa_jp1": np.concatenate([k[:, 1:], 0 * k[:, :1]], axis=-1)}
+    for name, want in ref.items():
+        np.testing.assert_allclose(sg[name], want, rtol=1e-13, atol=1e-13, err_msg=name)
+    Xn, Xm = ft.objective_inputs(ft.segment_table(q, P.ds))
+    np.testing.assert_array_equal(Xn, np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1))
+    np.testing.assert_array_equal(Xm, np.stack([sg[n] for n in ("kappa", "kappa_jm1", "kappa_jp1", "nu1",
+                                                                 "nu2")], axis=-1))
+    rng = np.random.default_rng(3)
+    n1, n2, m = (rng.normal(size=k.shape) for _ in range(3))
+    cs, sn = sg["cos"], sg["sin"]
+    want = np.stack([ft.forces_from_q(n1 * cs - n2 * sn, P), ft.forces_from_q(n1 * sn + n2 * cs, P),
+                     ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)], axis=-1)
+    table = ft.segment_table(q, P.ds)
+    np.testing.assert_allclose(ft.objective_forces(n1, n2, m, table, P), want, rtol=1e-12, atol=1e-12)
+    two = ft.objective_forces(*(np.stack([a, a]) for a in (n1, n2, m, table)), P)  # a leading batch axis
+    np.testing.assert_array_equal(two[1], ft.objective_forces(n1, n2, m, table, P))
+
+
 def test_theta_wrap_keeps_differences():
     th = np.array([[5.0, 5.2, 5.1, 4.9]])
     x = np.cumsum(np.cos(th), axis=-1)

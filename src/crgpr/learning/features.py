@@ -37,10 +37,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from crgpr.learning.prefilter import spatial_derivatives
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import node_weights
+from crgpr.physics.stencils import _segment_strains
 
 PAPER_Q_FEATURES = ("theta_bar", "dx_ds", "dy_ds")
 PAPER_THETA_FEATURES = ("theta_i", "theta_im1", "theta_ip1", "d2theta_ds2", "dx_ds", "dy_ds")
@@ -68,14 +70,51 @@ def wrap_shift(theta: np.ndarray, center: float | None) -> np.ndarray:
     return wrapped - theta
 
 
+# Columns of ``segment_table`` (..., N, 12): the objective feature matrices are slices of it,
+# OBJ_N_FEATURES = columns 0:3 and OBJ_M_FEATURES = columns 2:7 (nu1, nu2 appear twice).
+SEGMENT_COLUMNS = ("nu1", "nu2", "kappa", "kappa_jm1", "kappa_jp1", "nu1", "nu2", "cos", "sin", "ex", "ey",
+                   "theta_bar")
+_N_COLS, _M_COLS = slice(0, 3), slice(2, 7)
+
+
+@njit(cache=True)
+def _segment_table(q, ds, out):
+    """Fill out (B, N, 12) with the ``SEGMENT_COLUMNS`` of the rods q (B, N+1, 3): the strains of
+    the shared stencil (``stencils._segment_strains``), kappa_j = (theta_j+1 - theta_j) / ds and
+    its neighbours with the ghosts kappa_-1 = kappa_0, kappa_N = 0 (free tip)."""
+    n_seg = q.shape[1] - 1
+    for b in range(q.shape[0]):
+        for j in range(n_seg):
+            ex, ey, c, s, nu1, nu2 = _segment_strains(q[b], j, ds)
+            r = out[b, j]
+            r[0] = nu1
+            r[5] = nu1
+            r[1] = nu2
+            r[6] = nu2
+            r[2] = (q[b, j + 1, 2] - q[b, j, 2]) / ds
+            r[7] = c
+            r[8] = s
+            r[9] = ex
+            r[10] = ey
+            r[11] = 0.5 * (q[b, j, 2] + q[b, j + 1, 2])
+        for j in range(n_seg):
+            out[b, j, 3] = out[b, max(j - 1, 0), 2]
+            out[b, j, 4] = out[b, j + 1, 2] if j + 1 < n_seg else 0.0
+
+
+def segment_table(q: np.ndarray, ds: float) -> np.ndarray:
+    """Segment quantities (..., N, 12) of configurations q (..., N+1, 3), columns ``SEGMENT_COLUMNS``."""
+    q = np.asarray(q, dtype=float)
+    q2 = np.ascontiguousarray(q.reshape(-1, *q.shape[-2:]))
+    out = np.empty((q2.shape[0], q2.shape[1] - 1, len(SEGMENT_COLUMNS)))
+    _segment_table(q2, float(ds), out)
+    return out.reshape(*q.shape[:-2], *out.shape[1:])
+
+
 def segments(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> dict[str, np.ndarray]:
     """Segment quantities (..., N): slopes, mid-segment angle, strains nu1, nu2, kappa."""
-    ex = np.diff(x, axis=-1) / ds
-    ey = np.diff(y, axis=-1) / ds
-    tb = 0.5 * (th[..., 1:] + th[..., :-1])
-    c, s = np.cos(tb), np.sin(tb)
-    return {"ex": ex, "ey": ey, "theta_bar": tb, "cos": c, "sin": s,
-            "nu1": c * ex + s * ey, "nu2": -s * ex + c * ey, "kappa": np.diff(th, axis=-1) / ds}
+    t = segment_table(np.stack([x, y, th], axis=-1), ds)
+    return {name: t[..., SEGMENT_COLUMNS.index(name)] for name in SEGMENT_COLUMNS}
 
 
 def paper_q_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float,
@@ -100,21 +139,17 @@ def paper_theta_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float
 
 def objective_n_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> np.ndarray:
     """n1, n2 inputs per segment (..., N, 3): [nu1, nu2, kappa]."""
-    sg = segments(x, y, th, ds)
-    return np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
+    return np.ascontiguousarray(segment_table(np.stack([x, y, th], axis=-1), ds)[..., _N_COLS])
 
 
 def objective_m_features(x: np.ndarray, y: np.ndarray, th: np.ndarray, ds: float) -> np.ndarray:
     """m inputs per segment (..., N, 5): [kappa_j, kappa_{j-1}, kappa_{j+1}, nu1_j, nu2_j]."""
-    return segment_m_features(segments(x, y, th, ds))
+    return np.ascontiguousarray(segment_table(np.stack([x, y, th], axis=-1), ds)[..., _M_COLS])
 
 
-def segment_m_features(sg: dict[str, np.ndarray]) -> np.ndarray:
-    """``objective_m_features`` from the ``segments`` quantities already at hand."""
-    k = sg["kappa"]
-    km1 = np.concatenate([k[..., :1], k[..., :-1]], axis=-1)
-    kp1 = np.concatenate([k[..., 1:], np.zeros_like(k[..., :1])], axis=-1)
-    return np.stack([k, km1, kp1, sg["nu1"], sg["nu2"]], axis=-1)
+def objective_inputs(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The n1, n2 and the m inputs (views (..., N, 3), (..., N, 5)) of a ``segment_table``."""
+    return table[..., _N_COLS], table[..., _M_COLS]
 
 
 def hz_targets(arr: dict[str, np.ndarray], params: RodParams) -> np.ndarray:
@@ -174,3 +209,41 @@ def theta_forces_objective(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, nu1: n
     mm = np.concatenate([m, pad], axis=-1) - np.concatenate([pad, m], axis=-1)
     cc = np.concatenate([c, pad], axis=-1) + np.concatenate([pad, c], axis=-1)
     return (mm + 0.5 * params.ds * cc) / wds
+
+
+@njit(cache=True)
+def _objective_forces(n1, n2, m, table, wds, ds, out):
+    """``objective_forces`` on rows (B, N), (B, N, 12) -> out (B, N+1, 3)."""
+    n_seg = n1.shape[1]
+    for b in range(n1.shape[0]):
+        qx0 = qy0 = m0 = c0 = 0.0  # segment i-1's values (none below the base)
+        for i in range(n_seg + 1):
+            qx1 = qy1 = m1 = c1 = 0.0  # segment i's values (none beyond the free tip)
+            if i < n_seg:
+                cs, sn = table[b, i, 7], table[b, i, 8]
+                qx1 = n1[b, i] * cs - n2[b, i] * sn
+                qy1 = n1[b, i] * sn + n2[b, i] * cs
+                m1 = m[b, i]
+                c1 = table[b, i, 0] * n2[b, i] - table[b, i, 1] * n1[b, i]
+            out[b, i, 0] = (qx1 - qx0) / wds[i]
+            out[b, i, 1] = (qy1 - qy0) / wds[i]
+            out[b, i, 2] = ((m1 - m0) + 0.5 * ds * (c1 + c0)) / wds[i]
+            qx0, qy0, m0, c0 = qx1, qy1, m1, c1
+
+
+def objective_forces(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, table: np.ndarray,
+                     params: RodParams) -> np.ndarray:
+    """-H_q per unit length at the nodes (..., N+1, 3) from the segments' stress resultants n1, n2
+    and moments m (..., N) and their ``segment_table``: ``forces_from_q`` of the resultants in the
+    lab frame (q = n1 cos - n2 sin, n1 sin + n2 cos) and ``theta_forces_objective``'s moment
+    balance, in one compiled pass (tests/test_gradient_models.py checks the two agree)."""
+    shape = np.broadcast_shapes(n1.shape, n2.shape, m.shape, table.shape[:-1])
+    n_col = table.shape[-1]
+    tab = np.ascontiguousarray(np.broadcast_to(table, (*shape, n_col)).reshape(-1, shape[-1], n_col))
+
+    def rows(a: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1, shape[-1]), dtype=float)
+
+    out = np.empty((tab.shape[0], shape[-1] + 1, 3))
+    _objective_forces(rows(n1), rows(n2), rows(m), tab, node_weights(params.N) * params.ds, params.ds, out)
+    return out.reshape(*shape[:-1], shape[-1] + 1, 3)

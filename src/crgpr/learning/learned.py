@@ -135,22 +135,16 @@ class LearnedRod:
         """-H_q_hat per unit length at every node (..., N+1, 3) for configurations q (..., N+1, 3)."""
         P = self.params
         c = self.components
+        if self.features == "objective":
+            table = ft.segment_table(q, P.ds)
+            Xn, Xm = ft.objective_inputs(table)
+            return ft.objective_forces(c["obj_n1"](Xn), c["obj_n2"](Xn), c["obj_m"](Xm), table, P)
         x, y, th = q[..., 0], q[..., 1], q[..., 2]
         out = np.zeros(q.shape)
-        if self.features == "paper":
-            Xq = ft.paper_q_features(x, y, th, P.ds, self.center)
-            out[..., 0] = ft.forces_from_q(c["q_x"](Xq), P)
-            out[..., 1] = ft.forces_from_q(c["q_y"](Xq), P)
-            out[..., 1:, 2] = -c["dH_dtheta"](ft.paper_theta_features(x, y, th, P.ds, self.center))
-        else:
-            sg = ft.segments(x, y, th, P.ds)
-            Xn = np.stack([sg["nu1"], sg["nu2"], sg["kappa"]], axis=-1)
-            n1, n2 = c["obj_n1"](Xn), c["obj_n2"](Xn)
-            m = c["obj_m"](ft.segment_m_features(sg))
-            cs, sn = sg["cos"], sg["sin"]
-            out[..., 0] = ft.forces_from_q(n1 * cs - n2 * sn, P)
-            out[..., 1] = ft.forces_from_q(n1 * sn + n2 * cs, P)
-            out[..., 2] = ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)
+        Xq = ft.paper_q_features(x, y, th, P.ds, self.center)
+        out[..., 0] = ft.forces_from_q(c["q_x"](Xq), P)
+        out[..., 1] = ft.forces_from_q(c["q_y"](Xq), P)
+        out[..., 1:, 2] = -c["dH_dtheta"](ft.paper_theta_features(x, y, th, P.ds, self.center))
         return out
 
     def force(self, q: np.ndarray) -> np.ndarray:
@@ -229,7 +223,7 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
     out = run_hamiltonian(q0, np.zeros_like(q0) if p0 is None else p0, model.force, model.velocity,
                           free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
                           model.wds, what, velocity_slope=model.velocity_slope, port=port,
-                          bending=model.bending_flow(0.5 * settings.dt))
+                          bending=model.bending_flow(0.5 * settings.dt), inverse_mass=model.inv_mass)
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
                       u=None if inputs is None else u[::settings.record_every], ports=ports,

@@ -344,6 +344,7 @@ def run_hamiltonian(
     length: float | None = None,
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
     bending: tuple[float, float, np.ndarray] | None = None,
+    inverse_mass: np.ndarray | None = None,
 ) -> Integration:
     """``run_verlet`` in (q, p) for a learned H_z (eq. (17), Sec. III-B step 4).
 
@@ -370,6 +371,11 @@ def run_hamiltonian(
     energy it removes, the integral of H_p_theta dp_theta along the flow (trapezoid in p: exact
     for an affine H_p, so the same as ``run_rod``'s booking for the analytic one). (c and ds
     are for the caller's power, ``dissipation.bending_power``.)
+    ``inverse_mass`` (3,): the momentum map is linear, H_p = inverse_mass * p (``velocity`` must
+    be that map); each damping half-step is then the fixed linear map it is exactly (the zeta
+    flow p <- exp(-zeta inverse_mass h) p, then P), precomputed, and the energy it removes is the
+    drop of the kinetic energy sum_i w_i ds inverse_mass p^2 / 2 (what the trapezoid books for an
+    affine H_p).
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -379,6 +385,11 @@ def run_hamiltonian(
             return velocity_slope(p)
         d = 1e-6 * np.maximum(np.abs(p), 1e-6)
         return (velocity(p + d) - velocity(p - d)) / (2 * d)
+
+    if inverse_mass is not None:
+        return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
+                          every, damp=_linear_damping(inverse_mass, free, zeta, h, wds, bending),
+                          length=length, what=what, port=port, port_weight=wds, book_force=True)
 
     last: list[np.ndarray] = []  # [p1, H_p(p1)] of the previous damping half-step
 
@@ -409,3 +420,21 @@ def run_hamiltonian(
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=damp, length=length, what=what, port=port, port_weight=wds,
                       book_force=True)
+
+
+def _linear_damping(inverse_mass: np.ndarray, free: np.ndarray, zeta: float, h: float, wds: np.ndarray,
+                    bending: tuple[float, float, np.ndarray] | None
+                    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """``run_hamiltonian``'s damping half-step for a linear momentum map (its ``inverse_mass``)."""
+    m = np.broadcast_to(np.asarray(inverse_mass, dtype=float), free.shape) * free
+    decay = np.exp(-zeta * m * h)  # the exact zeta flow (1 on the clamped entries)
+    flow_theta = None if bending is None else bending[2] * decay[:, 2]  # P after the zeta flow
+    half_w = 0.5 * wds[:, None] * m
+
+    def damp(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p1 = p * decay
+        if flow_theta is not None:
+            p1[..., 2] = p[..., 2] @ flow_theta.T
+        return p1, (half_w * (p * p - p1 * p1)).sum(axis=(-2, -1))
+
+    return damp
