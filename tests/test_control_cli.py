@@ -128,6 +128,25 @@ def test_every_posterior_design_converges_from_near_a_well_posed_target(models):
     assert 0.0 <= row["steady_tip_error_spread_over_L"] < cfg["control"]["settle_band_over_L"]
 
 
+def test_a_model_without_learned_laws_is_a_point_mass_posterior(models, tmp_path):
+    """A model directory whose laws are all nominal (what the nominal floor leaves, its learned
+    laws refused) has one deterministic rod for every sample: its design converges and the spread
+    of the steady error over the posterior is 0, not undefined."""
+    import shutil
+
+    from crgpr.learning.nominal import NOMINAL_LAWS
+
+    d = tmp_path / "nominal"
+    shutil.copytree(models, d)
+    man = json.loads((d / "manifest.json").read_text())
+    man.update(models=[], models_refused=man["models"], nominal_laws=list(NOMINAL_LAWS), record_fit=None,
+               bending_damping=None)
+    (d / "manifest.json").write_text(json.dumps(man))
+    row = _posterior_row(d, load_config(SMOKE), (0.24, 0.1))
+    assert row["converged_fraction"] == 1.0
+    assert row["steady_tip_error_spread_over_L"] == 0.0
+
+
 def test_no_posterior_design_within_too_tight_input_limits_is_no_convergence(models):
     """Limits below the weight the tip must carry: no sample has a design, so none converges."""
     cfg = load_config(SMOKE)

@@ -68,10 +68,14 @@ class PosteriorRuns:
         """Median of per-sample ``values`` over the converged samples (nan if none converged)."""
         return float(np.median(values[self.converged])) if self.converged.any() else float("nan")
 
-    def spread(self) -> float:
+    def spread(self, point_mass: bool = False) -> float:
         """Sample standard deviation (ddof = 1) of the steady tip error over the converged samples
-        [m] (nan for fewer than two)."""
+        [m] (nan for fewer than two). ``point_mass``: the runs are the one deterministic rod of a
+        model without a learned force law (``sample_internals``), whose posterior is a point mass:
+        0 where it converged (every sample would be that rod), else nan."""
         e = self.steady_error[self.converged]
+        if point_mass:
+            return 0.0 if e.size else float("nan")
         return float(np.std(e, ddof=1)) if e.size >= 2 else float("nan")
 
 
