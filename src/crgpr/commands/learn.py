@@ -49,7 +49,9 @@ warp and the fitted c; ``laws.parquet`` shows the warped law, with the warp's co
 covariance in its band, also where the bending law itself is the nominal one). Where the laws
 are learned or nominal as the data decide (``nominal_laws: auto``), the rod with every law
 nominal forecasts the same held-out part too; where it does so consistently better, every law
-is taken nominal (the learned ones listed in the manifest's ``models_refused``).
+is taken nominal (the learned ones listed in the manifest's ``models_refused``). Where a damping
+is kept and the bending law learned, the nominal bending law with its own warp is fitted too and
+taken where it follows the record better (``record_fit.bending_nominal``; ``obj_m`` refused).
 """
 
 from __future__ import annotations
@@ -309,12 +311,19 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
         learned_any = bool(trained) or (damping is not None and damping.kept)  # else: the nominal rod
+        auto = cam["nominal_laws"] == "auto"
+        # a damped rod's learned bending law against the nominal one, warped (learning/record_fit.py)
+        bending_scale = (float(np.max(np.abs(kappa - params.kappa0))) if auto and "obj_m" in trained
+                         and damping is not None and damping.kept else None)
         fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
                           float(np.max(np.abs(kappa - center))),
                           0.0 if damping is None else damping.coefficient, kind == "full_state",
-                          cam["nominal_laws"] == "auto" and learned_any)
+                          auto and learned_any, bending_scale)
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
+        if fit.bending_nominal:  # the nominal bending law, warped, follows the record better
+            refused, trained = ["obj_m"], [m for m in trained if m != "obj_m"]
+            grey = {**grey, "nominal_laws": [k for k in NOMINAL_LAWS if k in {*grey["nominal_laws"], "m"}]}
         if fit.nominal_fallback:  # the learned laws forecast the record worse than the nominal rod
             refused, trained = trained, []
             grey = {**grey, "nominal_laws": list(NOMINAL_LAWS)}
@@ -358,12 +367,13 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
-                against_nominal: bool) -> RecordFit:
+                against_nominal: bool, bending_scale: float | None = None) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
     data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
-    also compared with the nominal one."""
+    also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
+    law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
 
@@ -372,8 +382,17 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
                           "objective", params, None, c)
     nominal = (LearnedRod({c: NominalLaw(k, params) for k, c in NOMINAL_LAWS.items()}, "objective", params,
                           None, 0.0) if against_nominal else None)
+    bending = None
+    if bending_scale is not None:
+        m0 = NominalLaw("m", params)
+
+        def nominal_bending(W: np.ndarray, c: float) -> LearnedRod:
+            return LearnedRod({**comps, "obj_m": BendingWarp(m0, float(params.kappa0), bending_scale, W)},
+                              "objective", params, None, c)
+        bending = (nominal_bending, float(params.kappa0), bending_scale)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start, nominal)
+                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start, nominal,
+                      bending)
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

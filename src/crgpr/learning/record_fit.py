@@ -52,6 +52,13 @@ held-out blocks consistently better, or follows the whole record with a smaller 
 the learned laws were regressed on that whole record, so a learned rod that follows it worse
 than the nominal rod does has laws the data do not pin down (a softening law attenuated by the
 curvature's errors in variables, say).
+
+A damped rod's bending law (``_nominal_bending``): where a damping is kept, the moment targets
+hold only part of it as c dkappa/dt (``learning.damping``; docs/learned-laws.md), and a law
+regressed on them carries the rest. There the rod with the bending law nominal is fitted as the
+learned one is (start, damping, warp candidates) and taken where it forecasts the held-out
+blocks consistently better or follows the whole record with a smaller RMSE of theta; the
+nominal rod's comparison then runs against it.
 """
 
 from __future__ import annotations
@@ -66,6 +73,7 @@ import numpy as np
 
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
+from crgpr.learning.lm import evaluate_all, levenberg_marquardt, levenberg_marquardt_batch
 from crgpr.learning.warp import admissible
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -73,7 +81,6 @@ from crgpr.physics.ports import Ports
 from crgpr.physics.signals import Inputs
 
 MODES: tuple[str, ...] = ("auto", "none")
-FD_STEP = 1e-3  # forward-difference step of every parameter (warp: relative stiffness; start: rad, rad/s)
 
 
 @dataclass(frozen=True)
@@ -108,6 +115,12 @@ class RecordFit:
     nominal_log_ratio_se: float = math.nan  # its standard error [-]
     rmse_nominal: float = math.nan  # the nominal rod's RMSE of theta over the record, start fitted [rad]
     rmse_compared: float = math.nan  # the same for the learned rod as compared with it [rad]
+    bending_nominal: bool = False  # the nominal bending law, warped, follows the record better: taken
+    bending_terms: int = 0  # the warp terms of that alternative as compared (0: not compared)
+    bending_log_ratio: float = math.nan  # mean per-block log(learned law / nominal law held-out error) [-]
+    bending_log_ratio_se: float = math.nan  # its standard error [-]
+    rmse_bending_nominal: float = math.nan  # the alternative's RMSE of theta over the record [rad]
+    rmse_bending_learned: float = math.nan  # the learned law's as compared with it [rad]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -178,100 +191,6 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
     return residuals
 
 
-def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray,
-                        free: np.ndarray, iterations: int, final: dict[str, np.ndarray] | None = None
-                        ) -> tuple[np.ndarray, float]:
-    """Minimise mean(r^2) over the parameters where ``free`` (bool, like a0), the others held at
-    a0: Levenberg-Marquardt with forward-difference Jacobians, each evaluation (a point and its
-    perturbations) one call of ``residuals``. Returns (parameters, RMS residual); the start's
-    RMS is inf where the first evaluation diverges. ``final`` (a dict) receives the residuals
-    ``r`` and the Jacobian ``J`` (columns: the free parameters) at the returned point. One
-    problem of ``levenberg_marquardt_batch``."""
-    (a, rms), = levenberg_marquardt_batch(residuals, [a0], [free], iterations,
-                                          None if final is None else [final])
-    return a, rms
-
-
-class _Problem:
-    """The state of one problem of ``levenberg_marquardt_batch``."""
-
-    def __init__(self, a0: np.ndarray, free: np.ndarray):
-        self.a = np.asarray(a0, dtype=float).copy()
-        self.idx = np.flatnonzero(free)
-        self.r = self.J = self.trial = None
-        self.cost, self.lam, self.it, self.tries, self.done = math.inf, 1e-3, 0, 0, False
-
-    def rows(self, point: np.ndarray) -> np.ndarray:
-        """The point and its forward-difference perturbations (1 + free parameters rows)."""
-        A = np.repeat(point[None], self.idx.size + 1, axis=0)
-        A[1 + np.arange(self.idx.size), self.idx] += FD_STEP
-        return A
-
-    def propose(self) -> np.ndarray:
-        JTJ, g = self.J.T @ self.J, self.J.T @ self.r
-        step = np.linalg.solve(JTJ + self.lam * np.diag(np.diag(JTJ) + 1e-12), -g)
-        self.trial = self.a.copy()
-        self.trial[self.idx] += step
-        return self.rows(self.trial)
-
-
-def _evaluate_all(residuals: Callable[[np.ndarray], np.ndarray | None], blocks: list[np.ndarray]
-                  ) -> list[np.ndarray | None]:
-    """``residuals`` of each block of rows, all in one call; where a rod leaves the physical range,
-    block by block (a block with a diverged rod gives None)."""
-    if not blocks:
-        return []
-    R = residuals(np.concatenate(blocks))
-    if R is None:
-        return [residuals(b) for b in blocks] if len(blocks) > 1 else [None]
-    return np.split(R, np.cumsum([b.shape[0] for b in blocks])[:-1])
-
-
-def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | None],
-                              starts: list[np.ndarray], frees: list[np.ndarray], iterations: int,
-                              finals: list[dict[str, np.ndarray]] | None = None
-                              ) -> list[tuple[np.ndarray, float]]:
-    """``levenberg_marquardt`` of several problems on the same residual function, each problem's
-    points and Jacobian perturbations evaluated together in one call per round (a rollout's
-    cost is mostly per time step, not per rod: problems fitted side by side cost little more
-    than one). Each problem takes the steps it would take alone: per iteration up to four trial
-    damping factors lambda (x10 after a trial that diverges or does not lower the cost), /3 after
-    an accepted step; it stops after ``iterations`` accepted steps, four refused trials, or a
-    cost gain below 1e-4 of the cost. Returns (parameters, RMS residual) per problem."""
-    probs = [_Problem(a0, f) for a0, f in zip(starts, frees, strict=True)]
-    active = [p for p in probs if p.idx.size]
-    for p in probs:
-        if not p.idx.size:  # nothing to fit: one evaluation
-            r = residuals(p.a[None])
-            p.cost = math.inf if r is None else float(np.mean(r**2))
-            p.done = True
-    for p, ev in zip(active, _evaluate_all(residuals, [p.rows(p.a) for p in active]), strict=True):
-        if ev is None:
-            p.done = True
-        else:
-            p.r, p.J = ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
-            p.cost = float(np.mean(p.r**2))
-            p.done = iterations <= 0
-    while True:
-        live = [p for p in active if not p.done]
-        if not live:
-            break
-        for p, ev in zip(live, _evaluate_all(residuals, [p.propose() for p in live]), strict=True):
-            new = math.inf if ev is None else float(np.mean(ev[0] ** 2))
-            if new < p.cost:
-                gain = p.cost - new
-                p.a, p.r, p.J = p.trial, ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
-                p.cost, p.lam, p.it, p.tries = new, p.lam / 3.0, p.it + 1, 0
-                p.done = p.it >= iterations or gain < 1e-4 * p.cost
-            else:
-                p.lam, p.tries = p.lam * 10.0, p.tries + 1
-                p.done = p.tries >= 4
-    for k, p in enumerate(probs):
-        if finals is not None and p.J is not None:
-            finals[k].update(r=p.r, J=p.J)
-    return [(p.a, math.sqrt(p.cost)) for p in probs]
-
-
 def correlation_time(R: np.ndarray, axis: int) -> float:
     """Integrated autocorrelation time 1 + 2 sum_k rho_k of the residuals R (frames, nodes) along
     ``axis`` (lags until the first non-positive autocorrelation; averaged over the other axis)."""
@@ -334,11 +253,46 @@ def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.nda
             "nominal_log_ratio_se": se, "rmse_nominal": rmse, "rmse_compared": rmse_learned}
 
 
+def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned: np.ndarray,
+                     start: np.ndarray, arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings,
+                     J: int, n_fit: int, n_t: int, damping: float, exact_start: bool, inputs: Inputs | None,
+                     ports: Ports | None, terms: list[int], iters: int, blocks: int) -> dict[str, Any]:
+    """The rod with the bending law nominal (``rod_for(W, c)``, its warp W and damping c) fitted as
+    the learned one is: each warp candidate of ``terms`` with the start and the damping's size,
+    from the learned rod's start-alone fit ``start``, on the first ``n_fit`` frames, the candidates
+    chosen among by forward selection (fewest terms first); then compared with the learned rod's
+    residuals ``learned`` (n_t, nodes): taken (``bending_nominal``) where it forecasts the held-out
+    blocks consistently better or follows the whole record with a smaller RMSE of theta (the
+    learned rod's record fit has the same freedom). A fit that leaves the physical range is not
+    taken. Returns the manifest's entries (``record``) and the taken fit."""
+    full = record_residuals(rod_for, arr, params, settings, J, n_t, damping, exact_start, inputs, ports)
+    part = record_residuals(rod_for, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
+    n_free, a0 = 2 * J + int(damping > 0), np.asarray(start, dtype=float)
+    fits = [a for a, _ in levenberg_marquardt_batch(
+        part, [a0] * len(terms), [np.arange(a0.size) < n_free + k for k in terms], iters)]
+    rows = _rows(full, np.stack(fits))
+    rmse_learned = float(np.sqrt(np.mean(learned**2)))
+    if rows is None:
+        return {"record": {"bending_nominal": False, "rmse_bending_nominal": math.inf,
+                           "rmse_bending_learned": rmse_learned}}
+    res = rows.reshape(len(terms), n_t, -1)
+    i = 0
+    for j in range(1, len(terms)):
+        if decide(res[i, n_fit:] ** 2, res[j, n_fit:] ** 2, blocks)[2]:
+            i = j
+    ratio, se, better = decide(learned[n_fit:] ** 2, res[i, n_fit:] ** 2, blocks)
+    rmse = float(np.sqrt(np.mean(res[i] ** 2)))
+    return {"record": {"bending_nominal": better or rmse < rmse_learned, "bending_terms": terms[i],
+                       "bending_log_ratio": ratio, "bending_log_ratio_se": se, "rmse_bending_nominal": rmse,
+                       "rmse_bending_learned": rmse_learned},
+            "terms": terms[i], "a": fits[i], "r": res[i], "full": full}
+
+
 def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
-    """``residuals`` of the rows of A in one batch (``_evaluate_all``, one block per row); a
+    """``residuals`` of the rows of A in one batch (``evaluate_all``, one block per row); a
     diverged row's residuals set to pi (a forecast no better than any angle); None where the
     first row (the start alone) diverges."""
-    out = _evaluate_all(residuals, [a[None] for a in A])
+    out = evaluate_all(residuals, [a[None] for a in A])
     if out[0] is None:
         return None
     return np.stack([np.full_like(out[0][0], math.pi) if r is None else r[0] for r in out])
@@ -348,7 +302,9 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                params: RodParams, settings: SimSettings, center: float, kappa_scale: float,
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
                damping: float = 0.0, exact_start: bool = False,
-               nominal_rod: LearnedRod | None = None) -> RecordFit:
+               nominal_rod: LearnedRod | None = None,
+               nominal_bending: tuple[Callable[[np.ndarray, float], LearnedRod], float, float] | None = None
+               ) -> RecordFit:
     """The module's fit and decision on the training record ``arr`` (prefilter or
     ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
     ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K) (``BendingWarp`` of its
@@ -367,7 +323,13 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     ``nominal_rod`` (the rod with every law nominal and no learned damping), its start fitted on
     the same first part: its held-out blocks are compared with the chosen learned rod's;
     where the nominal rod forecasts them consistently better, or reproduces the whole record with
-    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal)."""
+    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal).
+
+    ``nominal_bending`` = (the rod with the bending law nominal, ``rod(W, c)`` like ``law_rod``; its
+    warp's centre; its kappa scale): fitted as the learned rod is and compared with it
+    (``_nominal_bending``); where it follows the record better, ``bending_nominal`` is set, the
+    warp is the nominal law's (``crgpr learn`` then refuses the learned bending law), and the
+    comparison with ``nominal_rod`` runs against it."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -399,22 +361,23 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     rows = _rows(full, np.stack([a_start, *fits]))
     if rows is not None and not start_free.any():
         learned = float(np.sqrt(np.mean(rows[0] ** 2)))
+    candidates: list[dict[str, Any]] = []  # each candidate's held-out comparison
+    bending: dict[str, Any] = {}  # the comparison with the nominal bending law (nominal_bending)
 
-    def result(k: int, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float,
-               note: str, candidates: list[dict[str, Any]] | None = None) -> RecordFit:
+    def result(k: int, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float, note: str,
+               frame: tuple[float, float] = (float(center), float(kappa_scale))) -> RecordFit:
         w0 = 2 * J + nd
-        return RecordFit(k > 0, float(center), float(kappa_scale),
-                         [float(v) for v in a[w0:w0 + k]], [float(v) for v in a[:2 * J]],
-                         learned, start_only, fitted, ratio, se, note, time.perf_counter() - t_start,
-                         float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
-                         bool(exact_start), None, k, candidates or [])
+        return replace(RecordFit(k > 0, frame[0], frame[1], [float(v) for v in a[w0:w0 + k]],
+                                 [float(v) for v in a[:2 * J]], learned, start_only, fitted, ratio, se, note,
+                                 time.perf_counter() - t_start,
+                                 float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
+                                 bool(exact_start), None, k, candidates), **bending)
     if rows is None:
-        return result(0, zero, math.inf, learned, math.nan, math.nan,
-                      "a fitted rod left the physical range")
+        return result(0, zero, math.inf, learned, math.nan, math.nan, "a fitted rod left the physical range")
     res = rows.reshape(len(terms) + 1, n_t, -1)
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
     held = res[:, n_fit:] ** 2
-    chosen, candidates = 0, []  # index into rows: 0 the start alone
+    chosen = 0  # index into rows: 0 the start alone
     for i, k in enumerate(terms, start=1):
         ratio, se, better = decide(held[0], held[i], blocks)
         step = decide(held[chosen], held[i], blocks) if chosen else (ratio, se, better)
@@ -423,32 +386,44 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                            "gain_log_ratio": step[0], "gain_log_ratio_se": step[1], "chosen": False})
         if step[2]:
             chosen = i
+    # the pick so far: the learned law, warped where a candidate was chosen
+    k = terms[chosen - 1] if chosen else 0
+    a_pick, r_pick, full_pick = (fits[chosen - 1] if chosen else a_start), res[chosen], full
+    frame = (float(center), float(kappa_scale))
+    ratio, se = (candidates[chosen - 1] if chosen else candidates[0])["heldout_log_ratio"], (
+        candidates[chosen - 1] if chosen else candidates[0])["heldout_log_ratio_se"]
+    if nominal_bending is not None:
+        alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
+                               damping, exact_start, inputs, ports, terms, iters, blocks)
+        bending.update(alt["record"])
+        if bending["bending_nominal"]:
+            k, a_pick, r_pick, full_pick = alt["terms"], alt["a"], alt["r"], alt["full"]
+            frame = (float(nominal_bending[1]), float(nominal_bending[2]))
+            ratio, se = bending["bending_log_ratio"], bending["bending_log_ratio_se"]
     if nominal_rod is not None:
-        nominal = _against_nominal(nominal_rod, res[chosen], a_start, arr, params, settings, J, n_fit, n_t,
+        nominal = _against_nominal(nominal_rod, r_pick, a_start, arr, params, settings, J, n_fit, n_t,
                                    exact_start, inputs, ports, iters, blocks)
         if nominal["nominal_fallback"]:
+            bending["bending_nominal"] = False
             return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
                                   "the nominal rod forecasts the held-out blocks consistently better or "
-                                  "reproduces the record better: every law nominal", candidates), **nominal)
+                                  "reproduces the record better: every law nominal"), **nominal)
     else:
         nominal = {}
-    if not chosen:
-        first = candidates[0]
-        return replace(result(0, a_start, start_only, start_only, first["heldout_log_ratio"],
-                              first["heldout_log_ratio_se"],
-                              "no warp forecasts the held-out blocks consistently better", candidates),
-                       **nominal)
-    k, pick = terms[chosen - 1], candidates[chosen - 1]
-    pick["chosen"] = True
-    ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
+    if not k:
+        return replace(result(0, a_start, start_only, start_only, ratio, se,
+                              "no warp forecasts the held-out blocks consistently better"), **nominal)
+    if chosen and not bending.get("bending_nominal"):
+        candidates[chosen - 1]["chosen"] = True
     last: dict[str, np.ndarray] = {}
-    a, rms = levenberg_marquardt(full, fits[chosen - 1], np.arange(n_a) < 2 * J + nd + k, iters, last)
+    a, rms = levenberg_marquardt(full_pick, a_pick, np.arange(n_a) < 2 * J + nd + k, iters, last)
     if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
+        bending["bending_nominal"] = False
         return replace(result(0, a_start, start_only, start_only, ratio, se,
                               "the fitted warp reverses the law within the covered range (w <= 0): "
-                              "not kept", candidates), **nominal)
-    kept = replace(result(k, a, start_only, rms, ratio, se,
-                          f"kept ({k} terms): forecasts the held-out blocks consistently better",
-                          candidates), **nominal)
+                              "not kept"), **nominal)
+    which = "the nominal bending law" if bending.get("bending_nominal") else "the learned law"
+    kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms, on {which}): forecasts the "
+                          "held-out blocks consistently better", frame), **nominal)
     cov = warp_covariance(last["r"], last["J"], n_t, k) if "J" in last else np.full((k, k), np.nan)
     return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])
