@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 FD_STEP = 1e-3  # forward-difference step of every parameter (warp: relative stiffness; start: rad, rad/s)
+MAX_DIVERGED = 8  # trials of one problem that may leave the physical range (lambda x10 each) before it stops
 
 
 def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray,
@@ -39,6 +40,7 @@ class _Problem:
         self.idx = np.flatnonzero(free)
         self.r = self.J = self.trial = None
         self.cost, self.lam, self.it, self.tries, self.done = math.inf, 1e-3, 0, 0, False
+        self.diverged = 0  # trials that left the physical range
 
     def rows(self, point: np.ndarray) -> np.ndarray:
         """The point and its forward-difference perturbations (1 + free parameters rows)."""
@@ -74,9 +76,12 @@ def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | Non
     points and Jacobian perturbations evaluated together in one call per round (a rollout's
     cost is mostly per time step, not per rod: problems fitted side by side cost little more
     than one). Each problem takes the steps it would take alone: per iteration up to four trial
-    damping factors lambda (x10 after a trial that diverges or does not lower the cost), /3 after
-    an accepted step; it stops after ``iterations`` accepted steps, four refused trials, or a
-    cost gain below 1e-4 of the cost. Returns (parameters, RMS residual) per problem."""
+    damping factors lambda (x10 after a trial that does not lower the cost), /3 after an accepted
+    step; a trial that leaves the physical range is refused too (lambda x10) but counts apart,
+    up to ``MAX_DIVERGED`` in all (far from the fit, a long step can throw the rod out of range
+    where a shorter one lowers the cost). It stops after ``iterations`` accepted steps, four
+    refused trials in a row, ``MAX_DIVERGED`` diverged ones, or a cost gain below 1e-4 of the
+    cost. Returns (parameters, RMS residual) per problem."""
     probs = [_Problem(a0, f) for a0, f in zip(starts, frees, strict=True)]
     active = [p for p in probs if p.idx.size]
     for p in probs:
@@ -102,6 +107,9 @@ def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | Non
                 p.a, p.r, p.J = p.trial, ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
                 p.cost, p.lam, p.it, p.tries = new, p.lam / 3.0, p.it + 1, 0
                 p.done = p.it >= iterations or gain < 1e-4 * p.cost
+            elif ev is None:  # the trial left the physical range: a shorter step, up to MAX_DIVERGED times
+                p.lam, p.diverged = p.lam * 10.0, p.diverged + 1
+                p.done = p.diverged >= MAX_DIVERGED
             else:
                 p.lam, p.tries = p.lam * 10.0, p.tries + 1
                 p.done = p.tries >= 4
