@@ -176,7 +176,10 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
     def residuals(A: np.ndarray) -> np.ndarray | None:
         q0, p0 = (recorded_start(arr, A.shape[0]) if exact_start
                   else start_state(arr, params, A[:, :j0], modes))
-        c = damping * np.exp(A[:, j0]) if nd else np.full(A.shape[0], damping)
+        with np.errstate(over="ignore"):
+            c = damping * np.exp(A[:, j0]) if nd else np.full(A.shape[0], damping)
+        if not np.all(np.isfinite(c)):  # a trial step's damping beyond any rod: out of the physical range
+            return None
         out = np.empty((A.shape[0], theta.size))
         for cv in np.unique(c):
             rows = np.flatnonzero(c == cv)
