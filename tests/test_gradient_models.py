@@ -16,7 +16,7 @@ from crgpr.learning.gradient_models import (
     train_model,
 )
 from crgpr.learning.prefilter import fd_prefilter, prefiltered_arrays
-from crgpr.physics.rod import strains, variational_derivative
+from crgpr.physics.rod import node_weights, strains, variational_derivative
 from crgpr.physics.simulate import simulate
 from crgpr.report.hyperparameters import table2
 
@@ -95,9 +95,11 @@ def test_compiled_segment_table_and_force_assembly_match_their_array_definitions
     want = np.stack([ft.forces_from_q(n1 * cs - n2 * sn, P), ft.forces_from_q(n1 * sn + n2 * cs, P),
                      ft.theta_forces_objective(n1, n2, m, sg["nu1"], sg["nu2"], P)], axis=-1)
     table = ft.segment_table(q, P.ds)
-    np.testing.assert_allclose(ft.objective_forces(n1, n2, m, table, P), want, rtol=1e-12, atol=1e-12)
-    two = ft.objective_forces(*(np.stack([a, a]) for a in (n1, n2, m, table)), P)  # a leading batch axis
-    np.testing.assert_array_equal(two[1], ft.objective_forces(n1, n2, m, table, P))
+    wds = node_weights(P.N) * P.ds
+    np.testing.assert_allclose(ft.objective_forces(n1, n2, m, table, wds, P.ds), want, rtol=1e-12, atol=1e-12)
+    # a leading batch axis
+    two = ft.objective_forces(*(np.stack([a, a]) for a in (n1, n2, m, table)), wds, P.ds)
+    np.testing.assert_array_equal(two[1], ft.objective_forces(n1, n2, m, table, wds, P.ds))
 
 
 def test_theta_wrap_keeps_differences():

@@ -231,12 +231,13 @@ def _objective_forces(n1, n2, m, table, wds, ds, out):
             qx0, qy0, m0, c0 = qx1, qy1, m1, c1
 
 
-def objective_forces(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, table: np.ndarray,
-                     params: RodParams) -> np.ndarray:
+def objective_forces(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, table: np.ndarray, wds: np.ndarray,
+                     ds: float) -> np.ndarray:
     """-H_q per unit length at the nodes (..., N+1, 3) from the segments' stress resultants n1, n2
     and moments m (..., N) and their ``segment_table``: ``forces_from_q`` of the resultants in the
     lab frame (q = n1 cos - n2 sin, n1 sin + n2 cos) and ``theta_forces_objective``'s moment
-    balance, in one compiled pass (tests/test_gradient_models.py checks the two agree)."""
+    balance, in one compiled pass (tests/test_gradient_models.py checks the two agree). ``wds``
+    (N+1,): the nodes' lengths w_i ds (``node_weights`` times ds); ``ds`` the segment length."""
     shape = np.broadcast_shapes(n1.shape, n2.shape, m.shape, table.shape[:-1])
     n_col = table.shape[-1]
     tab = np.ascontiguousarray(np.broadcast_to(table, (*shape, n_col)).reshape(-1, shape[-1], n_col))
@@ -245,5 +246,5 @@ def objective_forces(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, table: np.nd
         return np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1, shape[-1]), dtype=float)
 
     out = np.empty((tab.shape[0], shape[-1] + 1, 3))
-    _objective_forces(rows(n1), rows(n2), rows(m), tab, node_weights(params.N) * params.ds, params.ds, out)
+    _objective_forces(rows(n1), rows(n2), rows(m), tab, np.asarray(wds, dtype=float), float(ds), out)
     return out.reshape(*shape[:-1], shape[-1] + 1, 3)

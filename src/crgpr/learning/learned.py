@@ -138,7 +138,8 @@ class LearnedRod:
         if self.features == "objective":
             table = ft.segment_table(q, P.ds)
             Xn, Xm = ft.objective_inputs(table)
-            return ft.objective_forces(c["obj_n1"](Xn), c["obj_n2"](Xn), c["obj_m"](Xm), table, P)
+            n1, n2, m = c["obj_n1"](Xn), c["obj_n2"](Xn), c["obj_m"](Xm)
+            return ft.objective_forces(n1, n2, m, table, self.wds, P.ds)
         x, y, th = q[..., 0], q[..., 1], q[..., 2]
         out = np.zeros(q.shape)
         Xq = ft.paper_q_features(x, y, th, P.ds, self.center)

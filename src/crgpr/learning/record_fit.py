@@ -393,8 +393,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     k = terms[chosen - 1] if chosen else 0
     a_pick, r_pick, full_pick = (fits[chosen - 1] if chosen else a_start), res[chosen], full
     frame = (float(center), float(kappa_scale))
-    ratio, se = (candidates[chosen - 1] if chosen else candidates[0])["heldout_log_ratio"], (
-        candidates[chosen - 1] if chosen else candidates[0])["heldout_log_ratio_se"]
+    pick = candidates[chosen - 1] if chosen else candidates[0]
+    ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
     if nominal_bending is not None:
         alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
                                damping, exact_start, inputs, ports, terms, iters, blocks)

@@ -386,11 +386,6 @@ def run_hamiltonian(
         d = 1e-6 * np.maximum(np.abs(p), 1e-6)
         return (velocity(p + d) - velocity(p - d)) / (2 * d)
 
-    if inverse_mass is not None:
-        return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
-                          every, damp=_linear_damping(inverse_mass, free, zeta, h, wds, bending),
-                          length=length, what=what, port=port, port_weight=wds, book_force=True)
-
     last: list[np.ndarray] = []  # [p1, H_p(p1)] of the previous damping half-step
 
     def damp(p: np.ndarray) -> tuple[np.ndarray, float]:
@@ -417,8 +412,9 @@ def run_hamiltonian(
         last[:] = [p1, v1]
         return p1, lost
 
+    step = damp if inverse_mass is None else _linear_damping(inverse_mass, free, zeta, h, wds, bending)
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
-                      every, damp=damp, length=length, what=what, port=port, port_weight=wds,
+                      every, damp=step, length=length, what=what, port=port, port_weight=wds,
                       book_force=True)
 
 
