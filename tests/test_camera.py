@@ -122,14 +122,15 @@ def test_positions_are_fitted_to_their_own_record_and_a_kept_warp_is_what_the_mo
     assert admissible(full["coefficients"]).all() and admissible(rf["coefficients"]).all()
     terms = cfg["camera"]["learn"]["record_fit"]["warp_terms"]
     assert [c["terms"] for c in rf["candidates"]] == sorted(terms) and rf["seconds"] > 0 and rf["note"]
-    assert rf["kept"] == (rf["warp_terms"] in terms) and len(rf["coefficients"]) == rf["warp_terms"]
-    assert sum(c["chosen"] for c in rf["candidates"]) == int(rf["kept"])
+    assert rf["kept"] == (rf["warp_terms"] in terms or len(rf["profile_coefficients"]) > 0)
+    assert len(rf["coefficients"]) == rf["warp_terms"]
+    assert sum(c["chosen"] for c in rf["candidates"]) == int(rf["warp_terms"] in terms)
     K = max(terms)
     man = read_manifest(d / "m_pos")
     def load(m: str):
         return load_evaluator(d / "m_pos" / m)
     plain, _ = learned_components(d / "m_pos", {**man, "record_fit": None}, load)
-    kept = {**rf, "kept": True, "coefficients": [0.05] + [0.0] * (K - 1)}
+    kept = {**rf, "kept": True, "coefficients": [0.05] + [0.0] * (K - 1), "profile_coefficients": []}
     warped, _ = learned_components(d / "m_pos", {**man, "record_fit": kept}, load)
     X = np.zeros((4, 5))
     X[:, 0] = [-20.0, -5.0, 5.0, 20.0]

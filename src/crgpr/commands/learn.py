@@ -318,7 +318,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
                           float(np.max(np.abs(kappa - center))),
                           0.0 if damping is None else damping.coefficient, kind == "full_state",
-                          auto and learned_any, bending_scale)
+                          auto and learned_any, bending_scale,
+                          "obj_m" in trained and along_s["used"] and kind != "full_state")
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
         if fit.bending_nominal:  # the nominal bending law, warped, follows the record better
@@ -367,19 +368,26 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
-                against_nominal: bool, bending_scale: float | None = None) -> RecordFit:
+                against_nominal: bool, bending_scale: float | None = None, along_s: bool = False
+                ) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
     data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
     also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
-    law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale."""
+    law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale;
+    with ``along_s`` (the bending law learned from positions takes s: their curvature
+    reconstruction smooths it along s) a profile along s is offered too (``record_fit.profile``)."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
+    rf = cfg["camera"]["learn"]["record_fit"]
+    K = max(int(k) for k in rf["warp_terms"])
+    S, R = (int(rf["profile"][k]) if along_s else 0 for k in ("stiffness_terms", "rest_terms"))
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
-        return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W)},
-                          "objective", params, None, c)
+        return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K],
+                                                         W[:, K:K + S], W[:, K + S:])}, "objective", params,
+                          None, c)
     nominal = (LearnedRod({c: NominalLaw(k, params) for k, c in NOMINAL_LAWS.items()}, "objective", params,
                           None, 0.0) if against_nominal else None)
     bending = None
@@ -387,12 +395,11 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
         m0 = NominalLaw("m", params)
 
         def nominal_bending(W: np.ndarray, c: float) -> LearnedRod:
-            return LearnedRod({**comps, "obj_m": BendingWarp(m0, float(params.kappa0), bending_scale, W)},
-                              "objective", params, None, c)
+            m = BendingWarp(m0, float(params.kappa0), bending_scale, W[:, :K])
+            return LearnedRod({**comps, "obj_m": m}, "objective", params, None, c)
         bending = (nominal_bending, float(params.kappa0), bending_scale)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      cfg["camera"]["learn"]["record_fit"], inputs, ports, damping, exact_start, nominal,
-                      bending)
+                      rf, inputs, ports, damping, exact_start, nominal, bending, (S, R))
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

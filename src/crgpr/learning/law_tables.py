@@ -38,7 +38,7 @@ import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
 from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
-from crgpr.learning.warp import Warp, warp_factor, warp_sd
+from crgpr.learning.warp import Warp, law_factor, segment_positions, shifted_kappa, warp_sd
 from crgpr.physics.params import RodParams
 
 LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
@@ -105,9 +105,12 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
             if np.isfinite(sv):
                 X[:, js] = sv
             X[:, j] = g
+            s_rel = None if js is None else X[:, js] / (params.N * params.ds)
+            for i in _curvature_columns(features):  # the warp's rest shift moves the law's curvature inputs
+                X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
             _, var = sd_gp.predict(X, return_var=True)
             mean, sd = _warped(_mean(stem, X), np.sqrt(np.asarray(var, dtype=float).ravel()),
-                               None if warp is None else X[:, features.index("kappa")], warp, warp_cov)
+                               None if warp is None else X[:, features.index("kappa")], warp, warp_cov, s_rel)
             rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": mean, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
@@ -116,17 +119,23 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     return pd.concat(rows, ignore_index=True)
 
 
+def _curvature_columns(features: list[str]) -> list[int]:
+    """The columns of a bending law's inputs that are curvatures (kappa and its neighbours')."""
+    return [i for i, f in enumerate(features) if f.startswith("kappa")]
+
+
 def _warped(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Warp | None,
-            warp_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and sd of a law m (mean, sd at the curvatures ``kappa``) times its record-fit ``warp``
-    w: m w and |w| sd, or sqrt((w sd)^2 + (m sd_w)^2) with the warp's coefficient covariance;
+            warp_cov: np.ndarray | None, s_rel: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and sd of a law m (mean, sd at the curvatures ``kappa`` and relative arclengths
+    ``s_rel`` = s/L, None for a law without s) times its record-fit ``warp`` w(kappa) v(s): m w v
+    and |w v| sd, or sqrt((w v sd)^2 + (m sd_wv)^2) with the warp's coefficient covariance;
     unchanged without a warp."""
     if warp is None:
         return mean, sd
-    w = warp_factor(kappa, *warp)
+    w = law_factor(kappa, s_rel, warp)
     if warp_cov is None:
-        return mean * w, sd * np.abs(w)
-    return mean * w, np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, warp[0], warp[1], warp_cov)) ** 2)
+        return mean * w, np.abs(w) * sd
+    return mean * w, np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, s_rel, warp, warp_cov)) ** 2)
 
 
 def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float
@@ -185,16 +194,20 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         med = np.median(np.asarray(f["X"], dtype=float), axis=0)
     sd_gp, _ = _sd_model(stem, max_points, seed, band_blocks)
-    s = segment_arclength(N, params.ds)
+    s, s_rel = segment_arclength(N, params.ds), segment_positions(N)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
+    at = np.empty((kappa.size, N))  # the curvature each segment's law is evaluated at (the warp's rest shift)
     for j in range(N):
         X = np.tile(med, (kappa.size, 1))
         X[:, features.index("kappa")] = kappa
         if "s" in features:
             X[:, features.index("s")] = s[j]
+            for i in _curvature_columns(features):
+                X[:, i] = shifted_kappa(X[:, i], s_rel[j:j + 1], warp)
+        at[:, j] = X[:, features.index("kappa")]
         mean[:, j] = _mean(stem, X)
         sd[:, j] = np.sqrt(np.asarray(sd_gp.predict(X, return_var=True)[1], dtype=float).ravel())
         if "s" not in features:  # the same law for every segment
-            mean[:, j:], sd[:, j:] = mean[:, [j]], sd[:, [j]]
+            mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
-    return _warped(mean, sd, kappa[:, None], warp, warp_cov)
+    return _warped(mean, sd, at, warp, warp_cov, s_rel)

@@ -18,6 +18,12 @@ Parameters (``RecordFit``):
   beyond the covered range, where the record says nothing of it (``BendingWarp``); kept only
   where w > 0 on the covered range (``warp.admissible``: the law keeps its sign where few
   samples constrain the warp);
+* where the bending law learned from positions takes s as an input
+  (``learning.law_choice.bending_arclength``), a profile along the rod: a stiffness factor
+  v(s) = exp(sum_{j = 1..S} b_j P_j(2 s/L - 1)) (``warp.profile_factor``), positive for any b,
+  and a rest-curvature shift d(s) = sum_{j < R} c_j P_j(2 s/L - 1) (``warp.rest_shift``):
+  m(kappa, s) <- m(kappa - d(s), s) w(kappa - d(s)) v(s); the positions' curvature
+  reconstruction smooths the law along s, and the motion shows what it misses;
 * the record's initial state, from positions (camera data): the derived angles theta_0(s) and
   rates omega_0(s) at its first kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero
   at the clamp); positions and velocities are rebuilt from them at the nominal strains nu^0 from
@@ -120,7 +126,15 @@ class RecordFit:
     bending_log_ratio: float = math.nan  # mean per-block log(learned law / nominal law held-out error) [-]
     bending_log_ratio_se: float = math.nan  # its standard error [-]
     rmse_bending_nominal: float = math.nan  # the alternative's RMSE of theta over the record [rad]
-    rmse_bending_learned: float = math.nan  # the learned law's as compared with it [rad]
+    rmse_bending_learned: float = math.nan  # the learned law's, as compared with it [rad]
+    profile_coefficients: list[float] = field(default_factory=list)  # a kept profile's b_j (profile_factor)
+    profile_terms: int = 0  # the profile candidate's number of stiffness terms S (0: not offered)
+    rest_coefficients: list[float] = field(default_factory=list)  # a kept profile's c_j [1/m] (rest_shift)
+    rest_terms: int = 0  # the profile candidate's number of rest-curvature terms R
+    profile_log_ratio: float = math.nan  # mean per-block log(held-out error: pick / pick with v(s)) [-]
+    profile_log_ratio_se: float = math.nan  # its standard error [-]
+    rest_log_ratio: float = math.nan  # the same for the rest shift d(s), on top of the pick then [-]
+    rest_log_ratio_se: float = math.nan  # its standard error [-]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -306,12 +320,14 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                cfg: dict[str, Any], inputs: Inputs | None = None, ports: Ports | None = None,
                damping: float = 0.0, exact_start: bool = False,
                nominal_rod: LearnedRod | None = None,
-               nominal_bending: tuple[Callable[[np.ndarray, float], LearnedRod], float, float] | None = None
-               ) -> RecordFit:
+               nominal_bending: tuple[Callable[[np.ndarray, float], LearnedRod], float, float] | None = None,
+               profile_terms: tuple[int, int] = (0, 0)) -> RecordFit:
     """The module's fit and decision on the training record ``arr`` (prefilter or
     ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
-    ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K) (``BendingWarp`` of its
-    bending law) and bending damping c; ``damping``: the kept damping's c (0: none, not fitted);
+    ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K + S + R) (``BendingWarp``
+    of its bending law: the K = max(``warp_terms``) coefficients a_k, then the (S, R) =
+    ``profile_terms`` coefficients b_j and c_j of its profile along s) and bending damping c;
+    ``damping``: the kept damping's c (0: none, not fitted);
     ``exact_start``: the record holds the full state, its first state is used as it is;
     ``cfg``: config ``camera.learn.record_fit``. A record whose held-out part has fewer than two
     frames per block keeps the law as learned.
@@ -332,7 +348,16 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     warp's centre; its kappa scale): fitted as the learned rod is and compared with it
     (``_nominal_bending``); where it follows the record better, ``bending_nominal`` is set, the
     warp is the nominal law's (``crgpr learn`` then refuses the learned bending law), and the
-    comparison with ``nominal_rod`` runs against it."""
+    comparison with ``nominal_rod`` runs against it.
+
+    ``profile_terms`` (S, R), not both 0 (a bending law that takes s as an input): after the
+    choice of K, a profile along the rod by forward selection on top of the pick: first a
+    stiffness factor v(s) of S Legendre terms (``warp.profile_factor``), then a rest-curvature
+    shift d(s) of R (``warp.rest_shift``), each fitted on the first part from the pick's fit
+    and taken where it forecasts the held-out blocks consistently better than the pick
+    (``profile_log_ratio``, ``rest_log_ratio``): a law learned along s from positions is
+    smoothed along s by their curvature reconstruction, and the motion shows the profile the
+    regression misses."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -350,7 +375,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                          float(damping), float(damping), bool(exact_start))
     full = record_residuals(law_rod, arr, params, settings, J, n_t, damping, exact_start, inputs, ports)
     part = record_residuals(law_rod, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
-    n_a = 2 * J + nd + K
+    S, R = (int(v) for v in profile_terms)
+    n_a = 2 * J + nd + K + S + R
     zero = np.zeros(n_a)
     start_free = np.arange(n_a) < 2 * J + nd
     if start_free.any():
@@ -367,14 +393,23 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     candidates: list[dict[str, Any]] = []  # each candidate's held-out comparison
     bending: dict[str, Any] = {}  # the comparison with the nominal bending law (nominal_bending)
 
+    profile: dict[str, Any] = {"profile_terms": S, "rest_terms": R}  # the profile's comparison
+
+    w0, p0 = 2 * J + nd, 2 * J + nd + K  # the first warp and the first profile parameter
+    blocks_along = {"profile": slice(p0, p0 + S), "rest": slice(p0 + S, p0 + S + R)}
+
     def result(k: int, a: np.ndarray, start_only: float, fitted: float, ratio: float, se: float, note: str,
-               frame: tuple[float, float] = (float(center), float(kappa_scale))) -> RecordFit:
-        w0 = 2 * J + nd
-        return replace(RecordFit(k > 0, frame[0], frame[1], [float(v) for v in a[w0:w0 + k]],
+               frame: tuple[float, float] = (float(center), float(kappa_scale)),
+               along: np.ndarray | None = None) -> RecordFit:
+        on_s = np.zeros(n_a, dtype=bool) if along is None else along
+        prof = {**profile, **{f"{name}_coefficients": [float(v) for v in a[b]] if on_s[b].any() else []
+                              for name, b in blocks_along.items()}}
+        return replace(RecordFit(k > 0 or bool(on_s.any()), frame[0], frame[1],
+                                 [float(v) for v in a[w0:w0 + k]],
                                  [float(v) for v in a[:2 * J]], learned, start_only, fitted, ratio, se, note,
                                  time.perf_counter() - t_start,
                                  float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
-                                 bool(exact_start), None, k, candidates), **bending)
+                                 bool(exact_start), None, k, candidates), **bending, **prof)
     if rows is None:
         return result(0, zero, math.inf, learned, math.nan, math.nan, "a fitted rod left the physical range")
     res = rows.reshape(len(terms) + 1, n_t, -1)
@@ -395,12 +430,27 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     frame = (float(center), float(kappa_scale))
     pick = candidates[chosen - 1] if chosen else candidates[0]
     ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
+    along = np.zeros(n_a, dtype=bool)  # the profile's parameters taken: stiffness, then rest shift
+    for name, b in blocks_along.items():  # forward selection on top of the pick
+        if b.stop > b.start:
+            free = (np.arange(n_a) < w0 + k) | along
+            free[b] = True
+            a_s = levenberg_marquardt(part, a_pick, free, iters)[0]
+            r_s = _rows(full, a_s[None])
+            if r_s is None:
+                continue
+            r_s = r_s.reshape(n_t, -1)
+            p_ratio, p_se, better = decide(r_pick[n_fit:] ** 2, r_s[n_fit:] ** 2, blocks)
+            profile.update({f"{name}_log_ratio": p_ratio, f"{name}_log_ratio_se": p_se})
+            if better:
+                along[b], a_pick, r_pick = True, a_s, r_s
     if nominal_bending is not None:
         alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
                                damping, exact_start, inputs, ports, terms, iters, blocks)
         bending.update(alt["record"])
         if bending["bending_nominal"]:
             k, a_pick, r_pick, full_pick = alt["terms"], alt["a"], alt["r"], alt["full"]
+            along[:] = False
             frame = (float(nominal_bending[1]), float(nominal_bending[2]))
             ratio, se = bending["bending_log_ratio"], bending["bending_log_ratio_se"]
     if nominal_rod is not None:
@@ -413,20 +463,24 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                                   "reproduces the record better: every law nominal"), **nominal)
     else:
         nominal = {}
-    if not k:
+    if not k and not along.any():
         return replace(result(0, a_start, start_only, start_only, ratio, se,
                               "no warp forecasts the held-out blocks consistently better"), **nominal)
     if chosen and not bending.get("bending_nominal"):
         candidates[chosen - 1]["chosen"] = True
     last: dict[str, np.ndarray] = {}
-    a, rms = levenberg_marquardt(full_pick, a_pick, np.arange(n_a) < 2 * J + nd + k, iters, last)
+    free = (np.arange(n_a) < w0 + k) | along
+    a, rms = levenberg_marquardt(full_pick, a_pick, free, iters, last)
     if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
         bending["bending_nominal"] = False
         return replace(result(0, a_start, start_only, start_only, ratio, se,
                               "the fitted warp reverses the law within the covered range (w <= 0): "
                               "not kept"), **nominal)
     which = "the nominal bending law" if bending.get("bending_nominal") else "the learned law"
-    kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms, on {which}): forecasts the "
-                          "held-out blocks consistently better", frame), **nominal)
-    cov = warp_covariance(last["r"], last["J"], n_t, k) if "J" in last else np.full((k, k), np.nan)
+    parts = [f"{int(along[b].sum())} {name} terms" for name, b in blocks_along.items() if along[b].any()]
+    on_s = f" and a profile along s: {', '.join(parts)}" if parts else ""
+    kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms{on_s}, on {which}): forecasts "
+                          "the held-out blocks consistently better", frame, along), **nominal)
+    n_w = k + int(along.sum())
+    cov = warp_covariance(last["r"], last["J"], n_t, n_w) if "J" in last else np.full((n_w, n_w), np.nan)
     return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])
