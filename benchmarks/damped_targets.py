@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 from materials_unseen import CASES
 
-from crgpr.commands.learn import _full_state_momenta, model_params
+from crgpr.commands.learn import full_state_momenta, model_params
 from crgpr.commands.materials import learn_config, material_case_rod, material_data
 from crgpr.config import load_config
 from crgpr.learning.damping import curvature_rates, fit_bending_damping
@@ -46,7 +46,7 @@ def one(cfg: dict, case: str, root: Path) -> dict:
     table = read_measured(d / "train.parquet")
     params = model_params(table, lcfg)
     meas = validate_frame(table, case, params.L0, params.ds, ScreenSettings.from_config(lcfg["discovery"]))
-    theta, p = _full_state_momenta(table, case, meas.t.size, meas.x.shape[1])
+    theta, p = full_state_momenta(table, case, meas.t.size, meas.x.shape[1])
     traj = Trajectory(math.nan, meas.t, np.stack([meas.x, meas.y, theta], axis=-1), p, params)
     df, _ = prefilter(traj, str(cfg["materials_study"]["prefilter"]), PrefilterSettings.from_config(lcfg),
                       int(cfg["seed"]) + 3000)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from crgpr.commands.learn import _full_state_momenta, model_params
+from crgpr.commands.learn import full_state_momenta, model_params
 from crgpr.config import load_config
 from crgpr.learning.camera import LearnSettings, positions_to_state
 from crgpr.learning.features import segment_arclength
@@ -55,7 +55,7 @@ def main() -> None:
     params = model_params(table, cfg)
     screen = ScreenSettings.from_config(cfg["discovery"])
     meas = validate_frame(table, args.record, params.L0, params.ds, screen)
-    full = _full_state_momenta(table, args.record, meas.t.size, meas.x.shape[1])
+    full = full_state_momenta(table, args.record, meas.t.size, meas.x.shape[1])
     seed = int(cfg["seed"]) + 3000
     if full is None:
         arr, _ = positions_to_state(meas, params, "gp", LearnSettings.from_config(cam), seed)

@@ -14,8 +14,10 @@ release angle). For each, the study's own rules run on it as they run on a study
 and worst RMSE(theta) over the study's six test angles, the worst ``ratio_to_nominal``,
 ``law_rmse`` and ``law_band_coverage``, which laws stayed nominal, the rest curvature used, the
 damping's c, whether the record fit kept its warp (and with how many terms), whether it fell
-back to the nominal rod, whether a damped rod's bending law was taken nominal (warped), and the
-learn wall time. ``--keep DIR`` keeps
+back to the nominal rod, whether a damped rod's bending law was taken nominal (warped), the
+terms of the profile along the rod it kept (``profile_terms`` of the stiffness factor v(s),
+``rest_terms`` of the rest-curvature shift; 0: none kept or not offered), and the learn wall
+time. ``--keep DIR`` keeps
 the records and models there. ``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
 value read as YAML) runs a variant of the config; its rows carry the overrides in a column
 ``overrides``, and ``--append`` adds them to an existing ``--csv``.
@@ -84,7 +86,9 @@ def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]
                      "bending_odd_about": man.get("bending_odd_about"), "rest_degree": rest.get("degree"),
                      "damping_c": damp.get("coefficient"), "warp_kept": fit.get("kept"),
                      "warp_terms": fit.get("warp_terms"), "nominal_fallback": fit.get("nominal_fallback"),
-                     "bending_nominal": bool(fit.get("bending_nominal")), "learn_seconds": seconds})
+                     "bending_nominal": bool(fit.get("bending_nominal")),
+                     "profile_terms": len(fit.get("profile_coefficients") or []),
+                     "rest_terms": len(fit.get("rest_coefficients") or []), "learn_seconds": seconds})
         print(rows[-1], flush=True)
     return rows
 

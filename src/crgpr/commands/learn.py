@@ -68,22 +68,31 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crgpr.commands.model_dir import (  # noqa: F401  (re-exported: the directory's readers)
+    FEATURES,
+    MANIFEST,
+    learned_components,
+    learned_damping,
+    learned_models,
+    load_learned,
+    model_names,
+    read_manifest,
+)
 from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
-from crgpr.learning.extrapolation import TangentContinuation, continue_table, law_reach, manifest_reach
-from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
+from crgpr.learning.extrapolation import continue_table, law_reach
+from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
-from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod
+from crgpr.learning.learned import LearnedRod
 from crgpr.learning.nominal import (
     NOMINAL_LAWS,
     NominalLaw,
-    SelectedInputs,
     segment_curvature_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
@@ -96,18 +105,8 @@ from crgpr.physics.rod import node_weights
 from crgpr.physics.signals import Inputs, read_inputs
 from crgpr.physics.simulate import Trajectory
 
-MANIFEST = "manifest.json"
 LAW_TABLE, LAW_FIGURE = "laws.parquet", "laws.png"
-FEATURES: tuple[str, ...] = ("objective", "paper")
 MOMENTUM_COLUMNS = ("p_x", "p_y", "p_theta")
-
-
-def model_names(features: str) -> list[str]:
-    """Gradient models of one feature set (constitutive part, then momenta)."""
-    if features not in FEATURES:
-        raise ConfigError(f"unknown feature set {features!r}; expected one of {FEATURES}")
-    comps = OBJECTIVE_COMPONENTS if features == "objective" else PAPER_COMPONENTS
-    return [*comps, *MOMENTUM_MODELS]
 
 
 def model_params(table: pd.DataFrame, cfg: dict[str, Any]) -> RodParams:
@@ -126,7 +125,7 @@ def model_params(table: pd.DataFrame, cfg: dict[str, Any]) -> RodParams:
     return replace(params, N=n) if n >= 1 else params
 
 
-def _full_state_momenta(df: pd.DataFrame, source: str, n_t: int, n_nodes: int
+def full_state_momenta(df: pd.DataFrame, source: str, n_t: int, n_nodes: int
                         ) -> tuple[np.ndarray, np.ndarray] | None:
     """(n_t, N+1) theta and (n_t, N+1, 3) momenta of a full-state table, or None (positions only)."""
     present = [c for c in MOMENTUM_COLUMNS if c in df.columns]
@@ -205,7 +204,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     inputs = None if inputs_file is None else read_inputs(inputs_file, float(meas.t[-1]), float(meas.t[0]))
     ports = None if inputs is None else ports_from_config(cfg)
     seed = int(cfg["seed"]) + 3000
-    full = _full_state_momenta(table, str(measured), meas.t.size, meas.x.shape[1])
+    full = full_state_momenta(table, str(measured), meas.t.size, meas.x.shape[1])
     if full is None:
         arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed)
         kind = "positions"
@@ -445,66 +444,6 @@ def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
         raise ConfigError(f"simulation.dt_s = {st.dt:g} s is too large for the model's rod (N = {params.N}): "
                           f"need < {params.dt_stable():.3g} s")
     return st
-
-
-def read_manifest(model_dir: str | Path) -> dict[str, Any]:
-    """The manifest of a ``crgpr learn`` model directory (clear error if absent)."""
-    path = Path(model_dir) / MANIFEST
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no model manifest (train the directory with crgpr learn)")
-    man = json.loads(path.read_text())
-    if man.get("kind") != "crgpr_models" or man.get("features") not in FEATURES:
-        raise ValueError(f"{path}: not a crgpr learn manifest")
-    return man
-
-
-def learned_models(man: dict[str, Any]) -> list[str]:
-    """The gradient models a directory's manifest says were learned (the others are nominal laws)."""
-    return list(man.get("models", model_names(man["features"])))
-
-
-def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callable[[str], Any]
-                       ) -> tuple[dict[str, Any], float | None]:
-    """The components of a model directory's learned rod and its theta window: each learned model
-    as ``load(name)`` gives it (the rollout's evaluator, or its posterior samples for the UQ
-    rollout), seen through ``SelectedInputs`` where it was fitted on some feature columns, and
-    the laws taken from the nominal rod (``nominal_laws``, grey box); the bending law times its
-    record-fit warp where the manifest keeps one (``learning.record_fit``). One assembly for the mean
-    and the sampled rod."""
-    params = RodParams.from_dict(man["rod"])
-    comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
-    center = None
-    for m in learned_models(man):
-        meta = json.loads((Path(model_dir) / f"{m}.json").read_text())
-        cols = meta.get("feature_columns")
-        comp = load(m)
-        s_mid = segment_arclength(params.N, params.ds) if meta.get("arclength_input") else None
-        comps[m] = comp if cols is None else SelectedInputs(comp, cols, s_mid)
-        if m in ("q_x", "dH_dtheta"):
-            center = meta.get("theta_center")
-    warp = manifest_warp(man.get("record_fit"))
-    if warp is not None:
-        comps["obj_m"] = BendingWarp(comps["obj_m"], *warp)
-    reach = manifest_reach(man)
-    if reach is not None and "obj_m" in learned_models(man):
-        comps["obj_m"] = TangentContinuation(comps["obj_m"], reach)
-    return comps, (center if man["features"] == "paper" else None)
-
-
-def load_learned(model_dir: str | Path) -> tuple[LearnedRod, dict[str, Any]]:
-    """The learned rod of a model directory, on the rod recorded in its manifest."""
-    man = read_manifest(model_dir)
-    params = RodParams.from_dict(man["rod"])
-    if man["features"] == "paper":
-        return LearnedRod.from_dir(model_dir, "paper", params), man
-    comps, center = learned_components(model_dir, man, lambda m: load_evaluator(Path(model_dir) / m))
-    return LearnedRod(comps, man["features"], params, center, learned_damping(man)), man
-
-
-def learned_damping(man: dict[str, Any]) -> float:
-    """The bending damping c [N m^2 s] a directory's manifest records (0: none learned or kept)."""
-    fit = man.get("bending_damping")
-    return 0.0 if not fit else float(fit["coefficient"])
 
 
 def add_cli(sub: Any) -> None:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.commands.learn import MOMENTUM_COLUMNS, _full_state_momenta, checked_step, load_learned
+from crgpr.commands.learn import MOMENTUM_COLUMNS, checked_step, full_state_momenta, load_learned
 from crgpr.config import ConfigError, add_config_options, cli_config, sim_settings
 from crgpr.io import write_parquet
 from crgpr.learning import learned
@@ -66,7 +66,7 @@ def initial_state(path: str | Path, cfg: dict[str, Any], params: RodParams, pref
     table = read_measured(path)
     screen = ScreenSettings.from_config(cfg["discovery"])
     meas = validate_frame(table, str(path), params.L0, params.ds, screen)
-    full = _full_state_momenta(table, str(path), meas.t.size, meas.x.shape[1])
+    full = full_state_momenta(table, str(path), meas.t.size, meas.x.shape[1])
     if full is not None:
         check_node_grid(meas, params)
         theta, p = full
