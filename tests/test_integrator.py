@@ -6,8 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from paper_rod import paper_rod
 
+from crgpr.gp.evaluators import Table1D
 from crgpr.physics.dissipation import kelvin_voigt_propagator
 from crgpr.physics.integrator import (
     MAX_SPEED,
@@ -18,6 +21,7 @@ from crgpr.physics.integrator import (
     run_hamiltonian,
     run_verlet,
 )
+from crgpr.physics.momentum_maps import MomentumMaps
 from crgpr.physics.params import SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights, straight_rod
 from crgpr.physics.simulate import dissipation_coefficients, simulate
@@ -78,6 +82,68 @@ def test_linear_momentum_map_damping_is_the_generic_flow(c):
                             S.n_steps, S.record_every, wds, bending=bending, inverse_mass=inv)
             for inv in (None, 1.0 / mass)]
     assert runs[0].dissipated[-1].min() > 0
+    np.testing.assert_allclose(runs[1].q, runs[0].q, rtol=0, atol=1e-12 * np.abs(runs[0].q).max())
+    np.testing.assert_allclose(runs[1].v, runs[0].v, rtol=0, atol=1e-10 * np.abs(runs[0].v).max())
+    np.testing.assert_allclose(runs[1].dissipated, runs[0].dissipated, rtol=1e-9, atol=1e-18)
+
+
+def _softening_map(stiffness: float, knee: float, span: float) -> Table1D:
+    """A tabulated momentum map on [-span, span], nonlinear: stiffness x knee tanh(p / knee)."""
+    x = np.linspace(-span, span, 41)
+    return Table1D(x, stiffness * knee * np.tanh(x / knee))
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=st.lists(st.floats(-3.0, 3.0, allow_nan=False), min_size=1, max_size=30))
+def test_compiled_momentum_maps_are_the_tables_and_the_nominal_maps(x):
+    """``MomentumMaps`` gives the values of ``Table1D`` (``np.interp``, 0 outside) and its slopes
+    bit for bit, at the knots, between them and outside, and the nominal maps' products."""
+    table = _softening_map(2.0, 1.0, 2.0)
+    knots = np.r_[table.tx, np.asarray(x)]
+    maps = MomentumMaps([3.0, (table.tx, table.ty), 0.5])
+    p = np.stack([knots, knots, knots], axis=-1)[None]
+    v = maps.velocity(p)
+    assert np.array_equal(v[0, :, 1], table(knots))
+    assert np.array_equal(v[0, :, 0], 3.0 * knots) and np.array_equal(v[0, :, 2], 0.5 * knots)
+    from crgpr.physics.momentum_maps import _slope
+    slopes = np.array([_slope(k, maps.xs, maps.ys, maps.offsets[1], maps.offsets[2], False, 0.0)
+                       for k in knots])
+    assert np.array_equal(slopes, table.slope(knots))
+
+
+@pytest.mark.parametrize("c", [0.0, 2e-4])
+def test_tabulated_momentum_map_damping_is_the_generic_flow(c):
+    """run_hamiltonian with ``momentum_maps`` (the damping half-step in one compiled pass) gives the
+    generic path's trajectory and dissipated energy to round-off for a tabulated, nonlinear
+    momentum map of p_theta, with and without a Kelvin-Voigt bending damping, for a batch of
+    rods."""
+    wds, mass, gu = _analytic()
+    free = free_mask(P)
+    q0 = np.stack([straight_rod(math.radians(a), P) for a in (60.0, 125.0)])
+    bending = None
+    if c:
+        bending = (c, P.ds, kelvin_voigt_propagator(c, P.ds, P.rhoI * wds, free[:, 2], 0.5 * S.dt))
+    knee = 5e-7  # |p_theta| of these releases: up to about 2e-6 undamped, 6e-7 with the bending damping
+    table = _softening_map(1.0 / P.rhoI, knee, 10 * knee)
+
+    inv = 1.0 / mass  # the nominal maps as NominalLaw evaluates them: stiffness x p
+
+    def velocity(p):
+        return np.stack([inv[0] * p[..., 0], inv[1] * p[..., 1], table(p[..., 2])], axis=-1)
+
+    def slope(p):
+        return np.stack([np.full(p.shape[:-1], inv[0]), np.full(p.shape[:-1], inv[1]),
+                         table.slope(p[..., 2])], axis=-1)
+
+    def force(q):
+        return np.stack([internal_forces(r, P)[0] for r in q]) / wds[:, None] + gu
+
+    maps = MomentumMaps([inv[0], inv[1], (table.tx, table.ty)])
+    assert np.array_equal(maps.velocity(q0), velocity(q0))
+    runs = [run_hamiltonian(q0, np.zeros_like(q0), force, velocity, free, 5 * P.zeta, S.dt, S.n_steps,
+                            S.record_every, wds, velocity_slope=slope, bending=bending, momentum_maps=m)
+            for m in (None, maps)]
+    assert runs[0].dissipated[-1].min() > 0 and np.abs(runs[0].v[..., 2]).max() > 0.5 * knee  # nonlinear
     np.testing.assert_allclose(runs[1].q, runs[0].q, rtol=0, atol=1e-12 * np.abs(runs[0].q).max())
     np.testing.assert_allclose(runs[1].v, runs[0].v, rtol=0, atol=1e-10 * np.abs(runs[0].v).max())
     np.testing.assert_allclose(runs[1].dissipated, runs[0].dissipated, rtol=1e-9, atol=1e-18)

@@ -54,6 +54,7 @@ from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.learning.nominal import NominalLaw
 from crgpr.physics.dissipation import bending_power, kelvin_voigt_propagator
 from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
+from crgpr.physics.momentum_maps import MomentumMaps
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
 from crgpr.physics.rod import free_mask, node_weights, straight_rod
@@ -107,6 +108,8 @@ class LearnedRod:
         # the nominal momentum maps H_p = p / (rho A), p / (rho I) (camera models): one product
         self.inv_mass = (np.array([h.stiffness for h in self.hp])
                          if all(isinstance(h, NominalLaw) for h in self.hp) else None)
+        # else, where each map is a table or linear (a learned map tabulated): compiled evaluation
+        self.maps = MomentumMaps.of(self.hp) if self.inv_mass is None else None
         self.gu = np.array([0.0, -params.rhoA * params.g, 0.0])
         if not (math.isfinite(damping) and damping >= 0):
             raise ValueError(f"learned bending damping c = {damping!r}: must be finite and >= 0")
@@ -154,6 +157,8 @@ class LearnedRod:
     def velocity(self, p: np.ndarray) -> np.ndarray:
         if self.inv_mass is not None:
             return self.inv_mass * np.asarray(p, dtype=float)
+        if self.maps is not None:
+            return self.maps.velocity(p)
         out = np.empty(p.shape)
         for k in range(3):
             out[..., k] = self.hp[k](p[..., k])
@@ -224,7 +229,8 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
     out = run_hamiltonian(q0, np.zeros_like(q0) if p0 is None else p0, model.force, model.velocity,
                           free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
                           model.wds, what, velocity_slope=model.velocity_slope, port=port,
-                          bending=model.bending_flow(0.5 * settings.dt), inverse_mass=model.inv_mass)
+                          bending=model.bending_flow(0.5 * settings.dt), inverse_mass=model.inv_mass,
+                          momentum_maps=model.maps)
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
                       u=None if inputs is None else u[::settings.record_every], ports=ports,

@@ -52,6 +52,7 @@ import numpy as np
 
 from crgpr.physics.dissipation import _damp_exponentials, _damp_factors, _kv_damp
 from crgpr.physics.kernels import MAX_SPEED, _rod_kernel
+from crgpr.physics.momentum_maps import MomentumMaps
 from crgpr.physics.params import SCHEMES
 
 # A rod of length L released from rest cannot move its material points faster than about
@@ -345,6 +346,7 @@ def run_hamiltonian(
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
     bending: tuple[float, float, np.ndarray] | None = None,
     inverse_mass: np.ndarray | None = None,
+    momentum_maps: MomentumMaps | None = None,
 ) -> Integration:
     """``run_verlet`` in (q, p) for a learned H_z (eq. (17), Sec. III-B step 4).
 
@@ -376,6 +378,8 @@ def run_hamiltonian(
     flow p <- exp(-zeta inverse_mass h) p, then P), precomputed, and the energy it removes is the
     drop of the kinetic energy sum_i w_i ds inverse_mass p^2 / 2 (what the trapezoid books for an
     affine H_p).
+    ``momentum_maps`` (``physics.momentum_maps.MomentumMaps``, the maps ``velocity`` evaluates:
+    each linear or a table): the same generic damping half-step in one compiled pass.
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -412,7 +416,12 @@ def run_hamiltonian(
         last[:] = [p1, v1]
         return p1, lost
 
-    step = damp if inverse_mass is None else _linear_damping(inverse_mass, free, zeta, h, wds, bending)
+    if inverse_mass is not None:
+        step = _linear_damping(inverse_mass, free, zeta, h, wds, bending)
+    elif momentum_maps is not None:
+        step = momentum_maps.damping(free, zeta, h, wds, None if bending is None else bending[2])
+    else:
+        step = damp
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=step, length=length, what=what, port=port, port_weight=wds,
                       book_force=True)
