@@ -12,7 +12,7 @@ camera model (learned momentum maps). Each is rolled out from the straight rod a
 three runs. The records of the runs are checked for equality with the first (``same``), so the
 figure is of one computation. In-process times of one function: no Snakemake, no I/O.
 The committed ``benchmarks/learned_rollout_step.csv`` adds ``us_per_step_before``: this script
-run on the same models, in the same session, with the code before the compiled momentum maps
+run on the same models, right before, with the code before the compiled momentum maps
 (``physics.momentum_maps``, commit d2cf40d), and ``speedup`` = before / now.
 """
 

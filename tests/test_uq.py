@@ -183,6 +183,8 @@ class _Batched:
 
     def __init__(self, comp: KernelMean | Table1D):
         self.comp = comp
+        if comp.kind == "table":  # the same table for every rod: the rod's compiled momentum maps see it
+            self.tx, self.ty, self.dim = comp.tx, comp.ty, 1
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         if self.comp.kind == "table":
