@@ -63,17 +63,23 @@ def test_generic_and_hamiltonian_forms_reproduce_the_compiled_rod_to_round_off()
     assert np.abs(gen.dissipated - ref.dissipated).max() <= 1e-12 * max(ref.dissipated[-1], 1e-300)
 
 
+def _two_releases(wds: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray, tuple | None]:
+    """The free mask, two straight rods at 60 and 125 deg, and a Kelvin-Voigt bending damping c
+    over half a step (None for c = 0)."""
+    free = free_mask(P)
+    q0 = np.stack([straight_rod(math.radians(a), P) for a in (60.0, 125.0)])
+    if not c:
+        return free, q0, None
+    return free, q0, (c, P.ds, kelvin_voigt_propagator(c, P.ds, P.rhoI * wds, free[:, 2], 0.5 * S.dt))
+
+
 @pytest.mark.parametrize("c", [0.0, 2e-4])
 def test_linear_momentum_map_damping_is_the_generic_flow(c):
     """run_hamiltonian with ``inverse_mass`` (the damping half-step as one precomputed linear map)
     gives the generic path's trajectory and dissipated energy to round-off, with and without a
     Kelvin-Voigt bending damping, for a batch of rods."""
     wds, mass, gu = _analytic()
-    free = free_mask(P)
-    q0 = np.stack([straight_rod(math.radians(a), P) for a in (60.0, 125.0)])
-    bending = None
-    if c:
-        bending = (c, P.ds, kelvin_voigt_propagator(c, P.ds, P.rhoI * wds, free[:, 2], 0.5 * S.dt))
+    free, q0, bending = _two_releases(wds, c)
 
     def force(q):
         return np.stack([internal_forces(r, P)[0] for r in q]) / wds[:, None] + gu
@@ -118,11 +124,7 @@ def test_tabulated_momentum_map_damping_is_the_generic_flow(c):
     momentum map of p_theta, with and without a Kelvin-Voigt bending damping, for a batch of
     rods."""
     wds, mass, gu = _analytic()
-    free = free_mask(P)
-    q0 = np.stack([straight_rod(math.radians(a), P) for a in (60.0, 125.0)])
-    bending = None
-    if c:
-        bending = (c, P.ds, kelvin_voigt_propagator(c, P.ds, P.rhoI * wds, free[:, 2], 0.5 * S.dt))
+    free, q0, bending = _two_releases(wds, c)
     knee = 5e-7  # |p_theta| of these releases: up to about 2e-6 undamped, 6e-7 with the bending damping
     table = _softening_map(1.0 / P.rhoI, knee, 10 * knee)
 

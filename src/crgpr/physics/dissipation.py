@@ -129,17 +129,24 @@ def _damp_tangent(v, dv, ft, fr, k_quad, free, h):
 
 
 @njit(cache=True)
+def kv_apply(P, x, out):
+    """out = P x: a Kelvin-Voigt flow (``kelvin_voigt_propagator``) on the rotational entries x
+    (n,) (out must not be x)."""
+    n = x.shape[0]
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += P[i, k] * x[k]
+        out[i] = acc
+
+
+@njit(cache=True)
 def _kv_tangent(dv, P):
     """Tangent of ``_kv_damp`` (a linear flow): omega_a <- P omega_a for every direction."""
-    m = dv.shape[0]
     n = dv.shape[1]
     w = np.empty(n)
-    for a in range(m):
-        for i in range(n):
-            acc = 0.0
-            for k in range(n):
-                acc += P[i, k] * dv[a, k, 2]
-            w[i] = acc
+    for a in range(dv.shape[0]):
+        kv_apply(P, dv[a, :, 2], w)
         for i in range(n):
             dv[a, i, 2] = w[i]
 

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from crgpr.physics.dissipation import kv_apply
+
 
 @njit(cache=True)
 def _value(x, xs, ys, a, b, lin, st):
@@ -92,11 +94,7 @@ def _damp(p, xs, ys, off, lin, st, free, zeta, h, wds, P, out, lost):
                 if k == 2:
                     v1[i] = vv
         if P.shape[0] > 0:
-            for i in range(n):
-                acc = 0.0
-                for j in range(n):
-                    acc += P[i, j] * out[b, j, 2]
-                pb[i] = acc
+            kv_apply(P, out[b, :, 2], pb)
             for i in range(n):
                 vb = _value(pb[i], xs, ys, off[2], off[3], lin[2], st[2])
                 e -= 0.5 * wds[i] * free[i, 2] * (v1[i] + vb) * (pb[i] - out[b, i, 2])
