@@ -99,7 +99,7 @@ def warp_sd(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp, cov: np.nda
     w = warp_factor(kappa, warp[0], warp[1], warp[2]) * np.ones_like(u2)
     g = [u2**k for k in range(K)]
     v = np.ones_like(u2)
-    if S and s_rel is not None:
+    if S:
         sr = np.broadcast_to(np.asarray(s_rel, dtype=float), u2.shape)
         v = profile_factor(sr.ravel(), np.asarray(warp[3], dtype=float)[:S]).reshape(u2.shape)
         P = _legendre(sr, S)
@@ -141,6 +141,16 @@ class BendingWarp:
         self.coefficients = np.asarray(coefficients, dtype=float)
         self.profile, self.rest = _coefficients(profile), _coefficients(rest)
         self.meta = getattr(component, "meta", {})
+        self._along: dict[int, tuple[np.ndarray | None, np.ndarray | None]] = {}  # N -> (v, d) per segment
+
+    def _factors(self, n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """v(s_j) and d(s_j) of the N = n segments (None without them), computed once per n: they
+        do not change between the time steps of a rollout."""
+        if n not in self._along:
+            s_rel = segment_positions(n)
+            self._along[n] = (None if self.profile is None else profile_factor(s_rel, self.profile),
+                              None if self.rest is None else rest_shift(s_rel, self.rest))
+        return self._along[n]
 
     @staticmethod
     def _per_segment(v: np.ndarray, ndim: int) -> np.ndarray:
@@ -148,13 +158,14 @@ class BendingWarp:
         return v if v.ndim == 1 else v.reshape(v.shape[:1] + (1,) * (ndim - 2) + v.shape[1:])
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        s_rel = segment_positions(X.shape[-2])
-        if self.rest is not None:
+        along = self.profile is not None or self.rest is not None
+        v, d = self._factors(X.shape[-2]) if along else (None, None)
+        if d is not None:
             X = np.array(X, dtype=float)
-            X[..., :3] -= self._per_segment(rest_shift(s_rel, self.rest), X.ndim - 1)[..., None]
+            X[..., :3] -= self._per_segment(d, X.ndim - 1)[..., None]
         w = warp_factor(X[..., 0], self.center, self.scale, self.coefficients)
-        if self.profile is not None:
-            w = w * self._per_segment(profile_factor(s_rel, self.profile), w.ndim)
+        if v is not None:
+            w = w * self._per_segment(v, w.ndim)
         return self.component(X) * w
 
     def rewrap(self, component: Any) -> BendingWarp:
