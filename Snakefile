@@ -20,7 +20,9 @@ configfile: "config.yaml"
 
 validate(config, "src/crgpr/schemas/config.schema.yaml")
 
-from crgpr.config import validate_config  # noqa: E402
+from crgpr.config import check_config_files, validate_config  # noqa: E402
+
+check_config_files(["config.yaml", *workflow.overwrite_configfiles])  # a key given twice is an error
 
 validate_config(config, "config")  # also what the schema cannot say: whole-number integers, physics
 

@@ -14,7 +14,7 @@ import pytest
 from paper_rod import paper_rod, paper_sim
 
 from crgpr.cli import main
-from crgpr.config import ConfigError, load_config, rod_params, sim_settings
+from crgpr.config import ConfigError, check_config_files, load_config, rod_params, sim_settings
 from crgpr.io import (
     OutputLocked,
     atomic_dir,
@@ -91,6 +91,22 @@ def test_cli_simulate_writes_parquet_with_metadata(tmp_path):
     assert "code_version" in meta
     e = read_parquet(en, ["t", "H", "dissipation_rate"])
     assert len(e) == 101 and np.all(np.isfinite(e["H"]))
+
+
+def test_a_key_given_twice_is_an_error_naming_both_lines(tmp_path, capsys):
+    """YAML keeps the last of two equal keys without a word; an edit to the first would be lost."""
+    cfg = tmp_path / "c.yaml"
+    text = (ROOT / "config.yaml").read_text()
+    cfg.write_text(text + "seed: 3\n")
+    first = 1 + text.splitlines().index(next(ln for ln in text.splitlines() if ln.startswith("seed:")))
+    with pytest.raises(ConfigError, match=rf"{cfg}: .*'seed' at line {len(text.splitlines()) + 1} "
+                                          rf"is already given at line {first}"):
+        load_config(cfg)
+    out = tmp_path / "x.parquet"
+    rc = main(["simulate", "--config", str(cfg), "--theta0", "85", "--out", str(out)])
+    assert rc == 2 and "given at line" in capsys.readouterr().err and not out.exists()
+    # the shipped files are clean
+    check_config_files([ROOT / "config.yaml", ROOT / "tests" / "smoke_config.yaml"])
 
 
 def test_cli_rejects_unknown_parameter(tmp_path, capsys):

@@ -55,6 +55,16 @@ def test_lint_is_clean():
     assert res.returncode == 0, res.stdout + res.stderr
 
 
+def test_a_config_key_given_twice_stops_the_workflow(tmp_path):
+    """Snakemake's own loader would keep the second of two equal keys without a word."""
+    cfg = tmp_path / "c.yaml"
+    text = SMOKE.read_text()
+    cfg.write_text(text + "seed: 3\n")
+    res = snakemake("-d", str(tmp_path), "--configfile", str(cfg), "-n", "all")
+    assert res.returncode != 0
+    assert f"'seed' at line {len(text.splitlines()) + 1} is already given" in res.stdout + res.stderr
+
+
 @pytest.fixture(scope="module")
 def smoke_repo(tmp_path_factory):
     """A copy of the checkout (its code can be edited) and a complete smoke run of its DAG."""

@@ -34,6 +34,39 @@ class ConfigError(ValueError):
 # the method learned by `crgpr learn` from the camera version of the training run (section camera)
 CAMERA_METHOD = "cr_gpr_objective_camera"
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader refusing a key given twice in one mapping (YAML keeps the last one
+    silently, so an edit to the first would be lost without a word)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} at line {line} is already given at line {seen[key]}")
+            seen[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: str | Path) -> Any:
+    """A YAML file's document; a mapping key given twice is an error (``yaml.YAMLError``)."""
+    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_UniqueKeyLoader)  # noqa: S506 (safe loader)
+
+
+def check_config_files(paths: list[str | Path]) -> None:
+    """Each configuration file parses with every key once (ConfigError naming the file, one line):
+    the Snakefile's ``configfile`` loader keeps the last of two equal keys without a word."""
+    for path in paths:
+        try:
+            read_yaml(path)
+        except FileNotFoundError:
+            continue  # Snakemake reports a missing file itself
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{path}: not valid YAML: {_short(str(exc))}") from exc
+
+
 def schema() -> dict[str, Any]:
     """The JSON schema of config.yaml (also used by the Snakefile's ``validate``)."""
     text = resources.files("crgpr").joinpath("schemas/config.schema.yaml").read_text()
@@ -257,7 +290,7 @@ def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None
     """Read, merge ``overrides`` (nested dict) and validate a configuration file."""
     path = Path(path) if path is not None else Path("config.yaml")
     try:
-        cfg = yaml.safe_load(path.read_text(encoding="utf-8"))
+        cfg = read_yaml(path)
     except FileNotFoundError as exc:
         raise ConfigError(f"config file not found: {path}") from exc
     except (OSError, UnicodeDecodeError) as exc:
