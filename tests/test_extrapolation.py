@@ -118,6 +118,33 @@ def test_wrapper_continues_each_row_from_its_own_inputs_and_rewraps():
     assert manifest_reach({"bending_extrapolation": None}) is None and manifest_reach({}) is None
 
 
+def test_a_tail_factor_scales_the_tangent_beyond_the_end_and_each_row_takes_its_own():
+    """g x the tangent's slope beyond the reach (the law inside it, and so the join, unchanged);
+    a batched wrapper continues member b with its own g_b; a manifest written before the factor
+    existed reads as g = 1."""
+    def law(v):
+        return np.tanh(v)
+    k = np.array([-6.0, -1.0, 0.5, 2.0, 3.0, 7.0])
+    base = continued(k, law, REACH)
+    half = Reach(**{**REACH.to_dict(), "slope_factor": 0.5})
+    y = continued(k, law, half)
+    inside = (k >= REACH.lo) & (k <= REACH.hi)
+    assert np.array_equal(y[inside], base[inside])
+    for r in (REACH.lo, REACH.hi):
+        assert continued(np.array([r]), law, half)[0] == pytest.approx(law(np.array([r]))[0])
+    out = ~inside
+    edge = np.where(k > REACH.hi, law(np.array([REACH.hi]))[0], law(np.array([REACH.lo]))[0])
+    assert np.allclose(y[out] - edge[out], 0.5 * (base[out] - edge[out]), rtol=1e-12, atol=1e-15)
+    X = np.repeat(k[None, :, None], 3, axis=0)
+    g = np.array([1.0, 0.5, 2.0])
+    rows = TangentContinuation(lambda Z: np.tanh(Z[..., 0]), REACH, g)(X)
+    for b in range(3):
+        want = continued(k, law, Reach(**{**REACH.to_dict(), "slope_factor": float(g[b])}))
+        assert np.allclose(rows[b], want, rtol=1e-12, atol=1e-15)
+    old = {key: v for key, v in REACH.to_dict().items() if key != "slope_factor"}
+    assert manifest_reach({"bending_extrapolation": old}).slope_factor == 1.0
+
+
 def test_a_law_seen_on_one_side_follows_its_edge_not_the_far_sides_trend():
     """A saturating law odd about 0, its noisy samples from one side (as a record that bends the
     rod one way gives them, unmirrored): on the unseen side the band is as wide as the moment

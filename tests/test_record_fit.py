@@ -16,7 +16,7 @@ from crgpr.config import load_config, rod_params
 from crgpr.learning.learned import LearnedRod, rollout
 from crgpr.learning.lm import levenberg_marquardt, levenberg_marquardt_batch
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw
-from crgpr.learning.record_fit import fit_record, start_state
+from crgpr.learning.record_fit import fit_record, start_state, tail_factor
 from crgpr.learning.warp import (
     BendingWarp,
     admissible,
@@ -225,6 +225,10 @@ def test_more_warp_terms_are_taken_only_where_they_forecast_better_than_fewer(sm
     assert two.kept and two.warp_terms == 2 and two.candidates[1]["chosen"], two
     assert np.allclose(two.coefficients, true, atol=0.03), two
     assert np.asarray(two.coefficient_cov).shape == (2, 2)
+    # the truncation estimate: against the next larger candidate where there is one, else the
+    # next smaller (here: the u^2 term the one-term warp lacks, as fitted on the record's first part)
+    assert one.truncation_terms == 2 and len(one.truncation_coefficients) == 2, one
+    assert two.truncation_terms == 1 and -0.5 < two.truncation_coefficients[1] < -0.25, two
 
 
 def test_a_stiffness_profile_along_s_is_found_where_the_law_takes_s_and_not_where_it_is_uniform(smoke):
@@ -271,6 +275,35 @@ def test_a_rest_curvature_along_s_shifts_the_laws_input_and_is_found_from_the_re
     assert fit.kept and fit.rest_terms == 2 and fit.profile_coefficients == [], fit
     assert np.allclose(fit.rest_coefficients, c_true, atol=0.03), fit
     assert np.allclose(manifest_warp(fit.to_dict())[4], fit.rest_coefficients)
+
+
+def test_a_tail_softer_than_the_tangent_is_sized_from_the_record(smoke):
+    """The law beyond its reach (``learning.extrapolation``): a rod whose law beyond |kappa| = 2
+    1/m (the smoke rod's 80 deg release bends it to 3.4 1/m in the fit's first part) stiffens at
+    0.4 x its tangent's slope; the learned law is that law with the tangent as it is (g = 1).
+    Offered the tail factor with the warp, the fit keeps it and finds g to 0.05, the warp next to
+    none; the covariance keeps the warp's terms alone."""
+
+    from crgpr.learning.extrapolation import Reach, TangentContinuation
+
+    P, sim, rf = smoke
+    law = NominalLaw("m", P)
+    reach = Reach(lo=-2.0, hi=2.0, span=0.5, covered_lo=-2.0, covered_hi=2.0, band=0.2)
+    true = LearnedRod({**{c: NominalLaw(k, P) for k, c in NOMINAL_LAWS.items()},
+                       "obj_m": TangentContinuation(law, Reach(**{**reach.to_dict(), "slope_factor": 0.4}))},
+                      "objective", P, None, 0.0)
+    tr = rollout(true, 80.0, sim)
+    arr = {"t": tr.t, "x": tr.q[..., 0], "y": tr.q[..., 1], "theta": tr.q[..., 2].copy(),
+           "p_x": tr.p[..., 0], "p_y": tr.p[..., 1], "p_theta": tr.p[..., 2].copy()}
+
+    def rod(W, c):
+        m = TangentContinuation(BendingWarp(law, 0.0, 2.0, W[:, :1]), reach, tail_factor(W[:, 1]))
+        return LearnedRod({**{cc: NominalLaw(k, P) for k, cc in NOMINAL_LAWS.items()}, "obj_m": m},
+                          "objective", P, None, c)
+    fit = fit_record(rod, arr, P, sim, 0.0, 2.0, rf, exact_start=True, tail=True)
+    assert fit.kept and abs(math.exp(fit.tail_log_factor) - 0.4) < 0.05, fit
+    assert abs(fit.coefficients[0]) < 0.02 and np.asarray(fit.coefficient_cov).shape == (1, 1), fit
+    assert tail_factor(-1e4) == pytest.approx(0.01) and tail_factor(0.0) == 1.0  # held to [1/100, 100]
 
 
 def test_a_warped_posterior_sample_set_is_still_a_sample_set_for_the_uq_rollout():

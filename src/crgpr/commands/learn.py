@@ -83,7 +83,7 @@ from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
 from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
-from crgpr.learning.extrapolation import continue_table, law_reach
+from crgpr.learning.extrapolation import Reach, TangentContinuation, continue_table, law_reach
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box
@@ -96,8 +96,8 @@ from crgpr.learning.nominal import (
     segment_curvature_snr,
 )
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
-from crgpr.learning.record_fit import RecordFit, fit_record
-from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov
+from crgpr.learning.record_fit import RecordFit, fit_record, tail_factor
+from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
@@ -305,7 +305,10 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if damping is not None and damping.kept and not record_fit:  # else the record fit sizes c (with the law)
         rmse = _record_rmse(cfg, out, arr, params, features, grey["nominal_laws"], trained, inputs, ports)
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
-    fit, refused = None, []
+    fit, refused, reach = None, [], None
+    rest_c = odd if odd is not None else (None if rest is None else rest.kappa_rest)
+    if record_fit and "obj_m" in trained:  # the law beyond its reach as the rollouts will integrate it
+        reach = bending_reach(out, params, cam, seed, rest_c)
     if record_fit:
         center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
@@ -318,9 +321,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           float(np.max(np.abs(kappa - center))),
                           0.0 if damping is None else damping.coefficient, kind == "full_state",
                           auto and learned_any, bending_scale,
-                          "obj_m" in trained and along_s["used"] and kind != "full_state")
+                          "obj_m" in trained and along_s["used"] and kind != "full_state", reach)
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
+        if reach is not None:  # the tangent's tail factor the fit sized (1 where no warp was kept)
+            reach = replace(reach, slope_factor=math.exp(fit.tail_log_factor))
         if fit.bending_nominal:  # the nominal bending law, warped, follows the record better
             refused, trained = ["obj_m"], [m for m in trained if m != "obj_m"]
             grey = {**grey, "nominal_laws": [k for k in NOMINAL_LAWS if k in {*grey["nominal_laws"], "m"}]}
@@ -332,7 +337,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     laws = law_outputs(out, trained, params, cam["law_table"], seed,
                        None if fit is None else manifest_warp(fit.to_dict()),
                        None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"],
-                       odd if odd is not None else (None if rest is None else rest.kappa_rest))
+                       rest_c, reach if "obj_m" in trained else None,
+                       None if fit is None else manifest_warp_truncation(fit.to_dict()))
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -367,8 +373,8 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
-                against_nominal: bool, bending_scale: float | None = None, along_s: bool = False
-                ) -> RecordFit:
+                against_nominal: bool, bending_scale: float | None = None, along_s: bool = False,
+                reach: Reach | None = None) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
@@ -376,7 +382,9 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
     law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale;
     with ``along_s`` (the bending law learned from positions takes s: their curvature
-    reconstruction smooths it along s) a profile along s is offered too (``record_fit.profile``)."""
+    reconstruction smooths it along s) a profile along s is offered too (``record_fit.profile``);
+    with ``reach`` the warped law is continued beyond it (``learning.extrapolation``) in every
+    rollout of the fit, as the model's rollouts will continue it."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
     rf = cfg["camera"]["learn"]["record_fit"]
@@ -384,9 +392,10 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     S, R = (int(rf["profile"][k]) if along_s else 0 for k in ("stiffness_terms", "rest_terms"))
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
-        return LearnedRod({**comps, "obj_m": BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K],
-                                                         W[:, K:K + S], W[:, K + S:])}, "objective", params,
-                          None, c)
+        m = BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K], W[:, K:K + S], W[:, K + S:K + S + R])
+        if reach is not None:  # the law beyond its reach with each row's tail factor
+            m = TangentContinuation(m, reach, tail_factor(W[:, K + S + R]))
+        return LearnedRod({**comps, "obj_m": m}, "objective", params, None, c)
     nominal = (LearnedRod({c: NominalLaw(k, params) for k, c in NOMINAL_LAWS.items()}, "objective", params,
                           None, 0.0) if against_nominal else None)
     bending = None
@@ -398,7 +407,7 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
             return LearnedRod({**comps, "obj_m": m}, "objective", params, None, c)
         bending = (nominal_bending, float(params.kappa0), bending_scale)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      rf, inputs, ports, damping, exact_start, nominal, bending, (S, R))
+                      rf, inputs, ports, damping, exact_start, nominal, bending, (S, R), reach is not None)
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:
@@ -412,20 +421,23 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
 
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
                 warp: Warp | None = None, warp_cov: np.ndarray | None = None,
-                extrapolation: dict[str, Any] | None = None, center: float | None = None) -> dict[str, Any]:
+                extrapolation: dict[str, Any] | None = None, center: float | None = None,
+                reach: Reach | None = None, warp_truncation: np.ndarray | None = None
+                ) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
-    where it has one, continued beyond its reach (``learning.extrapolation``,
-    ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature);
-    returns the manifest's entries (the covered range of every learned model's inputs, the
-    bending law's reach, the file names)."""
+    where it has one (``warp_cov``, ``warp_truncation``: its band), continued beyond its reach
+    (``learning.extrapolation``,
+    ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature;
+    ``reach``: the one the record fit used, else found on the table written here); returns the
+    manifest's entries (the covered range of every learned model's inputs, the bending law's
+    reach, the file names)."""
     from crgpr.report.laws import law_figure
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
-    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov)
-    reach = None
-    if "obj_m" in trained and extrapolation is not None:
+    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov, warp_truncation)
+    if reach is None and "obj_m" in trained and extrapolation is not None:
         reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]), center)
     entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict()}
     if tab.empty:
@@ -436,6 +448,15 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
                                          "continued (SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
     return {**entries, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
+
+
+def bending_reach(out: Path, params: RodParams, cam: dict[str, Any], seed: int, center: float | None
+                  ) -> Reach | None:
+    """The ``Reach`` of the bending law just written to ``out`` as learned (before any record fit:
+    its own band; ``cam``: config ``camera.learn``, its ``law_table`` and ``extrapolation``)."""
+    ext = cam["extrapolation"]
+    tab = law_tables(out, ["obj_m"], params, cam["law_table"], seed)
+    return law_reach(tab, float(ext["band"]), float(ext["tangent_span"]), center)
 
 
 def checked_step(st: SimSettings, params: RodParams) -> SimSettings:

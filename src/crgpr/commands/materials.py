@@ -29,7 +29,7 @@ from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.law_tables import bending_law_at_segments
 from crgpr.learning.learned import frozen_after_divergence, rollout_members
-from crgpr.learning.warp import manifest_warp, manifest_warp_cov
+from crgpr.learning.warp import manifest_warp, manifest_warp_cov, manifest_warp_truncation
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import segment_moment_law, straight_rod, strains
 from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame, trajectory_from_frame
@@ -104,7 +104,8 @@ def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_t
     mean, sd = bending_law_at_segments(model_dir, list(man["models"]), RodParams.from_dict(man["rod"]), x,
                                        int(law_table["max_points"]), seed, int(law_table["band_blocks"]),
                                        manifest_warp(man.get("record_fit")),
-                                       manifest_warp_cov(man.get("record_fit")))
+                                       manifest_warp_cov(man.get("record_fit")),
+                                       manifest_warp_truncation(man.get("record_fit")))
     return law_accuracy(mean, sd, segment_moment_law(truth, x), where)
 
 

@@ -22,12 +22,15 @@ saturation, halves the moment there). So, per side of the covered range:
   piece;
 * beyond that (or without c): the law continued by its tangent, with the slope k of the law's
   secant over the last ``tangent_span`` (hi - lo) inside the reach it ends on (the other side's,
-  mirrored, after a mirror piece), never below 0: no negative stiffness. The moment stays a
-  function of the curvature (and s), so the learned H_z keeps a potential (eq. (10)).
+  mirrored, after a mirror piece), never below 0: no negative stiffness; times the tail factor
+  g > 0 (``Reach.slope_factor``: 1 unless the record fit sized it from the motion,
+  ``learning.record_fit``). The moment stays a function of the curvature (and s), so the
+  learned H_z keeps a potential (eq. (10)).
 
 A law of s (a rod graded along its length): the reach of each side is the nearest over the
 table's s slices. The band used is the table's (jackknife-scaled, with the record-fit warp's
-share), at the other inputs' training medians.
+share; where the record fit runs, the law's own band before it: the reach it fits with is the
+one the model keeps), at the other inputs' training medians.
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ class Reach:
     covered_hi: float
     band: float  # the criterion: 1.96 sd <= band |m| [-]
     center: float | None = None  # the rest curvature the mirror piece is about (None: no mirror) [1/m]
+    slope_factor: float = 1.0  # the tail factor g of the tangent's slope (the record fit's, else 1) [-]
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -99,10 +103,12 @@ def law_reach(table: pd.DataFrame, band: float, tangent_span: float, center: flo
                  center=None if center is None else float(center))
 
 
-def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach: Reach) -> np.ndarray:
+def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach: Reach,
+              factor: np.ndarray | None = None) -> np.ndarray:
     """The law at curvatures ``kappa`` (any shape) inside the reach, continued beyond it by its
     mirror image about the rest curvature and then by its tangent (module doc); ``law(k)``
-    evaluates it at curvatures of ``kappa``'s shape (broadcasting as the law's own output does)."""
+    evaluates it at curvatures of ``kappa``'s shape (broadcasting as the law's own output does);
+    ``factor``: the tangent's tail factor, broadcast against ``kappa`` (None: the reach's)."""
     k = np.asarray(kappa, dtype=float)
     lo, hi, d = reach.lo, reach.hi, reach.span
     if not ((k > hi).any() or (k < lo).any()):
@@ -121,7 +127,8 @@ def continued(kappa: np.ndarray, law: Callable[[np.ndarray], np.ndarray], reach:
         # the tangent of the piece each tail starts from: a mirror piece ends on the other side's edge
         slope = np.where(k > end_hi, s_lo if end_hi > hi else s_hi,
                          np.where(k < end_lo, s_hi if end_lo < lo else s_lo, 0.0))
-        y = y + slope * (k - ke)
+        g = reach.slope_factor if factor is None else factor
+        y = y + g * slope * (k - ke)
     return y
 
 
@@ -129,10 +136,12 @@ class TangentContinuation:
     """A bending-law component (``learned.Component``, objective m features: column 0 is kappa)
     continued beyond its ``Reach`` (mirror piece, tangent: module doc); a wrapper like
     ``warp.BendingWarp`` (``rewrap``: the same continuation of another component, e.g. its
-    posterior samples, each continued from its own value and slope)."""
+    posterior samples, each continued from its own value and slope). ``factors`` (B,): each
+    member of a batched rollout's own tail factor (the record fit's trials), else the reach's."""
 
-    def __init__(self, component: Any, reach: Reach):
+    def __init__(self, component: Any, reach: Reach, factors: np.ndarray | None = None):
         self.component, self.reach = component, reach
+        self.factors = None if factors is None else np.asarray(factors, dtype=float).ravel()
         self.meta = getattr(component, "meta", {})
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
@@ -145,10 +154,11 @@ class TangentContinuation:
             Xk = X.copy()
             Xk[..., 0] = k
             return self.component(Xk)
-        return continued(k, law, self.reach)
+        g = None if self.factors is None else self.factors.reshape((-1,) + (1,) * (k.ndim - 1))
+        return continued(k, law, self.reach, g)
 
     def rewrap(self, component: Any) -> TangentContinuation:
-        return TangentContinuation(component, self.reach)
+        return TangentContinuation(component, self.reach, self.factors)
 
 
 def continue_table(table: pd.DataFrame, reach: Reach | None) -> pd.DataFrame:
@@ -174,4 +184,4 @@ def manifest_reach(man: dict[str, Any]) -> Reach | None:
     d = man.get("bending_extrapolation")
     if not d:
         return None
-    return Reach(**{k: None if d.get(k) is None else float(d[k]) for k in Reach.__dataclass_fields__})
+    return Reach(**{k: None if d[k] is None else float(d[k]) for k in Reach.__dataclass_fields__ if k in d})

@@ -82,12 +82,13 @@ def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
               max_points: int, seed: int, s_points: int, band_blocks: int, warp: Warp | None = None,
-              warp_cov: np.ndarray | None = None) -> pd.DataFrame:
+              warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
     covered_lo, covered_hi, sd_points, sd_scale, at_s. ``warp``: the bending law's record-fit warp
     (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd;
     ``warp_cov``: its coefficients' covariance, whose sd of the warp adds to the band:
-    sd^2 = (w sd_law)^2 + (m_law sd_w)^2."""
+    sd^2 = (w sd_law)^2 + (m_law sd_w)^2 (``truncation``: with the warp's truncation estimate,
+    ``warp.warp_sd``)."""
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
@@ -110,7 +111,8 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
                 X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
             _, var = sd_gp.predict(X, return_var=True)
             mean, sd = _warped(_mean(stem, X), np.sqrt(np.asarray(var, dtype=float).ravel()),
-                               None if warp is None else X[:, features.index("kappa")], warp, warp_cov, s_rel)
+                               None if warp is None else X[:, features.index("kappa")], warp, warp_cov, s_rel,
+                               truncation)
             rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": mean, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
@@ -125,21 +127,22 @@ def _curvature_columns(features: list[str]) -> list[int]:
 
 
 def _warped(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Warp | None,
-            warp_cov: np.ndarray | None, s_rel: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+            warp_cov: np.ndarray | None, s_rel: np.ndarray | None = None,
+            truncation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Mean and sd of a law m (mean, sd at the curvatures ``kappa`` and relative arclengths
     ``s_rel`` = s/L, None for a law without s) times its record-fit ``warp`` w(kappa) v(s): m w v
-    and |w v| sd, or sqrt((w v sd)^2 + (m sd_wv)^2) with the warp's coefficient covariance;
-    unchanged without a warp."""
+    and |w v| sd, or sqrt((w v sd)^2 + (m sd_wv)^2) with the warp's coefficient covariance (and
+    its ``truncation`` estimate, ``warp.warp_sd``); unchanged without a warp."""
     if warp is None:
         return mean, sd
     w = law_factor(kappa, s_rel, warp)
     if warp_cov is None:
         return mean * w, np.abs(w) * sd
-    return mean * w, np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, s_rel, warp, warp_cov)) ** 2)
+    return mean * w, np.sqrt((w * sd) ** 2 + (mean * warp_sd(kappa, s_rel, warp, warp_cov, truncation)) ** 2)
 
 
-def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float
-                         ) -> pd.DataFrame:
+def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float,
+                         truncation: np.ndarray | None = None) -> pd.DataFrame:
     """The table of a nominal bending law EI (kappa - kappa0) that the record fit warped
     (``law_table``'s columns; input kappa, covered range the warp's [c - kappa_s, c + kappa_s]):
     mean m w, sd |m| sd_w (0 without the warp's covariance), sd_points 0, sd_scale 1."""
@@ -147,35 +150,38 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
     lo, hi = c - ks, c + ks
     g = np.linspace(lo - pad * (hi - lo), hi + pad * (hi - lo), n_grid)
     m = params.EI * (g - params.kappa0)
-    mean, sd = _warped(m, np.zeros_like(m), g, warp, warp_cov)
+    mean, sd = _warped(m, np.zeros_like(m), g, warp, warp_cov, None, truncation)
     return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": mean, "sd": sd, "nominal": m,
                          "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                          "sd_points": 0, "sd_scale": 1.0, "at_s": np.nan})
 
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
-               seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None) -> pd.DataFrame:
+               seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None,
+               truncation: np.ndarray | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
     ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``,
-    ``warp_cov``: the bending law's record-fit warp and its coefficient covariance, ``law_table``;
+    ``warp_cov``, ``truncation``: the bending law's record-fit warp, its coefficient covariance and
+    truncation estimate, ``law_table``;
     a bending law left nominal but warped is tabulated by ``warped_nominal_table``)."""
     out = []
     if warp is not None and "obj_m" not in trained:
         out.append(warped_nominal_table(params, warp, warp_cov, int(settings["n_grid"]),
-                                        float(settings["pad"])))
+                                        float(settings["pad"]), truncation))
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
                              float(settings["pad"]), int(settings["max_points"]), seed,
                              int(settings["s_points"]), int(settings["band_blocks"]),
-                             warp if name == "obj_m" else None, warp_cov if name == "obj_m" else None))
+                             *((warp, warp_cov, truncation) if name == "obj_m" else (None, None, None))))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
 
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
                             max_points: int, seed: int, band_blocks: int, warp: Warp | None = None,
-                            warp_cov: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                            warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
@@ -188,7 +194,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     N = params.N
     if "obj_m" not in trained:
         m = np.repeat((params.EI * (kappa - params.kappa0))[:, None], N, axis=1)
-        return _warped(m, np.zeros_like(m), kappa[:, None], warp, warp_cov)
+        return _warped(m, np.zeros_like(m), kappa[:, None], warp, warp_cov, None, truncation)
     stem = Path(model_dir) / "obj_m"
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
@@ -210,4 +216,4 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
-    return _warped(mean, sd, at, warp, warp_cov, s_rel)
+    return _warped(mean, sd, at, warp, warp_cov, s_rel, truncation)

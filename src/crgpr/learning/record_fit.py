@@ -37,6 +37,16 @@ Parameters (``RecordFit``):
   rod's extra restoring moment read as less damping); fitted jointly, both are judged by the
   motion. Rows of a batch with different c run as separate batches (one c per rollout).
 
+* where the learned bending law has a reach (``learning.extrapolation``: the law beyond it is
+  continued by its tangent), the tail factor g of that tangent's slope (``tail_factor``), free
+  with every warp of the learned law: the rollouts of the fit continue the law as the model's
+  will, and the record's largest curvatures (at the clamp, where the positions' reconstruction
+  attenuates them, so they lie beyond the law's covered range) show how steep the law goes on.
+
+A kept warp's truncation estimate (``truncation``): the warp of the next candidate number of
+terms less the kept one's, both fitted on the first part (``warp.warp_sd`` adds it to the
+law's band: the coefficients' covariance holds their scatter, not the error of too few terms).
+
 Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
 at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
 (``learned.rollout``). Decision from the data (``decide``): the start alone and the start with
@@ -87,6 +97,14 @@ from crgpr.physics.ports import Ports
 from crgpr.physics.signals import Inputs
 
 MODES: tuple[str, ...] = ("auto", "none")
+TAIL_LOG_BOUND = math.log(100.0)  # the tail factor g of the law's tangent is held to [1/100, 100] [-]
+
+
+def tail_factor(log_g: np.ndarray | float) -> np.ndarray:
+    """g = exp(log g) with log g clipped to +-``TAIL_LOG_BOUND``: the tangent continuation's slope
+    factor (``extrapolation.Reach.slope_factor``) the record fit sizes; where the motion wants the
+    tail flat, its log runs off towards -inf and g stops at 1/100."""
+    return np.exp(np.clip(np.asarray(log_g, dtype=float), -TAIL_LOG_BOUND, TAIL_LOG_BOUND))
 
 
 @dataclass(frozen=True)
@@ -135,6 +153,9 @@ class RecordFit:
     profile_log_ratio_se: float = math.nan  # its standard error [-]
     rest_log_ratio: float = math.nan  # the same for the rest shift d(s), on top of the pick then [-]
     rest_log_ratio_se: float = math.nan  # its standard error [-]
+    truncation_coefficients: list[float] = field(default_factory=list)  # a kept warp's truncation d_k
+    truncation_terms: int = -1  # the candidate K' it compares with (0: no warp; -1: none kept)
+    tail_log_factor: float = 0.0  # log of the tail factor g of the law's tangent (``tail_factor``; 0: g = 1)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -302,7 +323,21 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
     return {"record": {"bending_nominal": better or rmse < rmse_learned, "bending_terms": terms[i],
                        "bending_log_ratio": ratio, "bending_log_ratio_se": se, "rmse_bending_nominal": rmse,
                        "rmse_bending_learned": rmse_learned},
-            "terms": terms[i], "a": fits[i], "r": res[i], "full": full}
+            "terms": terms[i], "a": fits[i], "r": res[i], "full": full,
+            "truncation": truncation(fits, terms, i, n_free)}
+
+
+def truncation(fits: list[np.ndarray], terms: list[int], i: int, w0: int) -> dict[str, Any]:
+    """The truncation estimate of the warp of ``terms[i]`` terms among the candidates' fits on the
+    same first part of the record (``fits``, parameter rows whose warp starts at column ``w0``):
+    the warp of the next number of terms less this one's, d_k = a'_k - a_k (the next larger
+    candidate's where there is one, it estimates this one's error; else the next smaller one's,
+    or no warp: conservative). ``warp.warp_sd`` adds it to the law's band."""
+    j = i + 1 if i + 1 < len(terms) else i - 1
+    K = max(terms)
+    other = fits[j][w0:w0 + K] if j >= 0 else np.zeros(K)
+    return {"truncation_coefficients": [float(v) for v in other - fits[i][w0:w0 + K]],
+            "truncation_terms": terms[j] if j >= 0 else 0}
 
 
 def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
@@ -321,7 +356,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                damping: float = 0.0, exact_start: bool = False,
                nominal_rod: LearnedRod | None = None,
                nominal_bending: tuple[Callable[[np.ndarray, float], LearnedRod], float, float] | None = None,
-               profile_terms: tuple[int, int] = (0, 0)) -> RecordFit:
+               profile_terms: tuple[int, int] = (0, 0), tail: bool = False) -> RecordFit:
     """The module's fit and decision on the training record ``arr`` (prefilter or
     ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
     ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K + S + R) (``BendingWarp``
@@ -376,8 +411,10 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     full = record_residuals(law_rod, arr, params, settings, J, n_t, damping, exact_start, inputs, ports)
     part = record_residuals(law_rod, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
     S, R = (int(v) for v in profile_terms)
-    n_a = 2 * J + nd + K + S + R
+    T = int(bool(tail))
+    n_a = 2 * J + nd + K + S + R + T
     zero = np.zeros(n_a)
+    at_tail = np.arange(n_a) >= n_a - T  # the tail factor's log, free with every warp
     start_free = np.arange(n_a) < 2 * J + nd
     if start_free.any():
         r0 = full(zero[None])
@@ -386,7 +423,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
     fits = [a for a, _ in levenberg_marquardt_batch(  # each from the start-alone fit, side by side
-        part, [a_start] * len(terms), [np.arange(n_a) < 2 * J + nd + k for k in terms], iters)]
+        part, [a_start] * len(terms), [(np.arange(n_a) < 2 * J + nd + k) | at_tail for k in terms], iters)]
     rows = _rows(full, np.stack([a_start, *fits]))
     if rows is not None and not start_free.any():
         learned = float(np.sqrt(np.mean(rows[0] ** 2)))
@@ -427,13 +464,14 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     # the pick so far: the learned law, warped where a candidate was chosen
     k = terms[chosen - 1] if chosen else 0
     a_pick, r_pick, full_pick = (fits[chosen - 1] if chosen else a_start), res[chosen], full
+    trunc = truncation(fits, terms, chosen - 1, w0) if chosen else {}
     frame = (float(center), float(kappa_scale))
     pick = candidates[chosen - 1] if chosen else candidates[0]
     ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
     along = np.zeros(n_a, dtype=bool)  # the profile's parameters taken: stiffness, then rest shift
     for name, b in blocks_along.items():  # forward selection on top of the pick
         if b.stop > b.start:
-            free = (np.arange(n_a) < w0 + k) | along
+            free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
             free[b] = True
             a_s = levenberg_marquardt(part, a_pick, free, iters)[0]
             r_s = _rows(full, a_s[None])
@@ -450,6 +488,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         bending.update(alt["record"])
         if bending["bending_nominal"]:
             k, a_pick, r_pick, full_pick = alt["terms"], alt["a"], alt["r"], alt["full"]
+            trunc = alt["truncation"]
             along[:] = False
             frame = (float(nominal_bending[1]), float(nominal_bending[2]))
             ratio, se = bending["bending_log_ratio"], bending["bending_log_ratio_se"]
@@ -469,7 +508,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     if chosen and not bending.get("bending_nominal"):
         candidates[chosen - 1]["chosen"] = True
     last: dict[str, np.ndarray] = {}
-    free = (np.arange(n_a) < w0 + k) | along
+    on_law = k and not bending.get("bending_nominal")  # the learned law's warp: its tail too
+    free = (np.arange(n_a) < w0 + k) | along | (at_tail if on_law else False)
     a, rms = levenberg_marquardt(full_pick, a_pick, free, iters, last)
     if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
         bending["bending_nominal"] = False
@@ -480,7 +520,10 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     parts = [f"{int(along[b].sum())} {name} terms" for name, b in blocks_along.items() if along[b].any()]
     on_s = f" and a profile along s: {', '.join(parts)}" if parts else ""
     kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms{on_s}, on {which}): forecasts "
-                          "the held-out blocks consistently better", frame, along), **nominal)
-    n_w = k + int(along.sum())
-    cov = warp_covariance(last["r"], last["J"], n_t, n_w) if "J" in last else np.full((n_w, n_w), np.nan)
+                          "the held-out blocks consistently better", frame, along), **nominal,
+                   **(trunc if k else {}),
+                   tail_log_factor=float(np.log(tail_factor(a[-1]))) if free[at_tail].any() else 0.0)
+    n_w, n_tail = k + int(along.sum()), int(free[at_tail].sum())
+    cov = (warp_covariance(last["r"], last["J"], n_t, n_w + n_tail)[:n_w, :n_w] if "J" in last
+           else np.full((n_w, n_w), np.nan))
     return replace(kept, coefficient_cov=[[float(v) for v in row] for row in cov])

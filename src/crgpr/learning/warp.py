@@ -86,11 +86,15 @@ def shifted_kappa(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp | None
     return kappa - rest_shift(np.asarray(s_rel, dtype=float).ravel(), warp[4]).reshape(np.shape(s_rel))
 
 
-def warp_sd(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp, cov: np.ndarray) -> np.ndarray:
+def warp_sd(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp, cov: np.ndarray,
+            truncation: np.ndarray | None = None) -> np.ndarray:
     """The sd of w(kappa) v(s) (``law_factor``) from the covariance ``cov`` of its coefficients
     (a_k, b_j, then c_j; the record fit's ``coefficient_cov``), to first order: sqrt(g^T cov g),
     g = (v u^(2k), w v P_j) over the a_k and b_j (the rest shift's c_j move the law's input, not
-    its factor: their part of the band is not included)."""
+    its factor: their part of the band is not included); with ``truncation`` (the record fit's
+    ``truncation_coefficients`` d_k: the warp of the next number of terms less this one's), the
+    warp's truncation error v sum_k d_k u^(2k) is added in quadrature: the covariance holds the
+    coefficients' scatter, not the error of a warp with too few terms."""
     K = np.asarray(warp[2]).size
     S = np.asarray(warp[3]).size if s_rel is not None else 0
     C = np.asarray(cov, dtype=float)[:K + S, :K + S]
@@ -105,7 +109,11 @@ def warp_sd(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp, cov: np.nda
         P = _legendre(sr, S)
         g += [w * P[..., j] for j in range(S)]
     G = np.stack(g, axis=-1) * v[..., None]
-    return np.sqrt(np.maximum(np.einsum("...k,kl,...l->...", G, C, G), 0.0))
+    var = np.maximum(np.einsum("...k,kl,...l->...", G, C, G), 0.0)
+    if truncation is not None and np.asarray(truncation).size:
+        d = warp_factor(kappa, warp[0], warp[1], np.asarray(truncation, dtype=float)) - 1.0
+        var = var + (d * v) ** 2
+    return np.sqrt(var)
 
 
 def segment_positions(n_segments: int) -> np.ndarray:
@@ -181,6 +189,13 @@ def manifest_warp(record_fit: dict[str, Any] | None) -> Warp | None:
             np.asarray(record_fit["coefficients"], dtype=float),
             np.asarray(record_fit.get("profile_coefficients") or [], dtype=float),
             np.asarray(record_fit.get("rest_coefficients") or [], dtype=float))
+
+
+def manifest_warp_truncation(record_fit: dict[str, Any] | None) -> np.ndarray | None:
+    """The truncation estimate of a manifest's kept warp (``warp_sd``), else None."""
+    if manifest_warp(record_fit) is None or not record_fit.get("truncation_coefficients"):
+        return None
+    return np.asarray(record_fit["truncation_coefficients"], dtype=float)
 
 
 def manifest_warp_cov(record_fit: dict[str, Any] | None) -> np.ndarray | None:
