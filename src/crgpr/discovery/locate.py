@@ -12,12 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.discovery.regression import autocorrelation_time
 from crgpr.discovery.residual import Residual
 from crgpr.discovery.settings import DiscoverySettings
 from crgpr.measured.kinematics import Kinematics, marker_matrix
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import masses, node_weights, segment_EI
+from crgpr.stats import autocorrelation_time
 
 STATE_GROUPS: tuple[str, ...] = ("x", "y", "theta", "p_x", "p_y", "p_theta")
 

@@ -18,23 +18,7 @@ from scipy.optimize import lsq_linear
 
 from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS
 from crgpr.discovery.residual import Residual
-
-
-def autocorrelation_time(series: np.ndarray, axis: int) -> float:
-    """Integrated autocorrelation time along ``axis`` (Geyer's initial positive sequence)."""
-    x = np.moveaxis(series, axis, 0)
-    x = x - x.mean(axis=0, keepdims=True)
-    n = x.shape[0]
-    var = float(np.mean(x**2))
-    if n < 3 or var <= 0:
-        return 1.0
-    tau = 1.0
-    for k in range(1, n // 2):
-        rho = float(np.mean(x[k:] * x[:-k])) / var
-        if rho <= 0.0:
-            break
-        tau += 2.0 * rho
-    return max(1.0, tau)
+from crgpr.stats import autocorrelation_time
 
 
 @dataclass

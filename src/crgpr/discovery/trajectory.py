@@ -19,12 +19,12 @@ from scipy.optimize import least_squares
 from scipy.optimize._numdiff import approx_derivative  # least_squares' own differences
 
 from crgpr.discovery.effects import EFFECTS
-from crgpr.discovery.regression import autocorrelation_time
 from crgpr.discovery.synthetic import aligned_settings
 from crgpr.measured.kinematics import Kinematics, marker_matrix, marker_positions
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams
 from crgpr.physics.simulate import simulate
+from crgpr.stats import autocorrelation_time
 
 
 def rod_state(theta: np.ndarray, omega: np.ndarray, base: np.ndarray, params: RodParams

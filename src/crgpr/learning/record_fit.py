@@ -95,6 +95,7 @@ from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
 from crgpr.physics.signals import Inputs
+from crgpr.stats import autocorrelation_time
 
 MODES: tuple[str, ...] = ("auto", "none")
 TAIL_LOG_BOUND = math.log(100.0)  # the tail factor g of the law's tangent is held to [1/100, 100] [-]
@@ -229,20 +230,6 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
     return residuals
 
 
-def correlation_time(R: np.ndarray, axis: int) -> float:
-    """Integrated autocorrelation time 1 + 2 sum_k rho_k of the residuals R (frames, nodes) along
-    ``axis`` (lags until the first non-positive autocorrelation; averaged over the other axis)."""
-    Rc = np.moveaxis(R - R.mean(axis=axis, keepdims=True), axis, 0)
-    var = float(np.mean(Rc**2))
-    tau = 1.0
-    for k in range(1, Rc.shape[0] // 2):
-        rho = float(np.mean(Rc[k:] * Rc[:-k])) / var if var > 0 else 0.0
-        if rho <= 0.0:
-            break
-        tau += 2.0 * rho
-    return tau
-
-
 def warp_covariance(r: np.ndarray, J: np.ndarray, n_frames: int, K: int) -> np.ndarray:
     """Covariance (K, K) of the warp coefficients (the last K columns of J) of a least-squares fit
     with residuals r (frames x nodes, time-major) and Jacobian J: s^2 (J^T J)^-1, s^2 the residual
@@ -251,7 +238,7 @@ def warp_covariance(r: np.ndarray, J: np.ndarray, n_frames: int, K: int) -> np.n
     every frame and node as independent)."""
     R = np.asarray(r, dtype=float).reshape(n_frames, -1)
     s2 = float(np.sum(R**2)) / max(R.size - J.shape[1], 1)
-    inflate = correlation_time(R, 0) * correlation_time(R, 1)
+    inflate = autocorrelation_time(R, 0) * autocorrelation_time(R, 1)
     C = s2 * inflate * np.linalg.pinv(J.T @ J)
     return C[-K:, -K:]
 
