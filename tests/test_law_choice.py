@@ -15,7 +15,12 @@ from crgpr.config import ConfigError, load_config, rod_params, validate_schema
 from crgpr.gp import load_model
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.features import segment_arclength
-from crgpr.learning.law_choice import arclength_dependence, learned_or_nominal
+from crgpr.learning.law_choice import (
+    arclength_dependence,
+    learned_or_nominal,
+    nominal_choice,
+    standin_departure,
+)
 from crgpr.learning.nominal import NominalLaw
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
@@ -78,6 +83,42 @@ def test_a_law_that_departs_only_at_the_large_strains_of_a_decaying_release_is_l
     # and the nominal truth on the same record is kept either way
     m0 = EI * kappa + _ar1(t.size, 0.99, 2e-4, rng)
     assert not learned_or_nominal(kappa[:, None], m0, EI * kappa, 3, 10, pooled=True).richer
+
+def test_a_nominal_law_the_data_chose_has_the_band_of_the_departure_they_did_not_rule_out():
+    """Kept nominal, the bending law's band is its richer stand-in's departure from it, fitted on
+    every sample: a softening law whose departure the held-out blocks do not show consistently
+    (its errors correlated over the record) lies inside that band over most of the record's
+    curvatures, where a nominal law with no band holds it nowhere; the departure of a nominal
+    truth is small next to the law; a law learned (richer chosen), or one left nominal by a
+    fixed list, gets no such band."""
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 2.0, 2000)
+    kappa = 60.0 * np.exp(-t / 0.8) * np.sin(2 * np.pi * 3.0 * t)
+
+    def soft(k):
+        return EI * 30.0 * np.tanh(k / 30.0)
+    m = soft(kappa) + _ar1(t.size, 0.999, 0.04, rng)  # slowly wandering offsets, as large as the law
+    c = learned_or_nominal(kappa[:, None], m, EI * kappa, 3, 10, pooled=True)
+    assert not c.richer and c.standin is not None and len(c.standin) == 4, c
+    grid = np.linspace(kappa.min(), kappa.max(), 201)
+    band = 1.96 * standin_departure(grid, c.to_dict())
+    inside = np.abs(EI * grid - soft(grid)) <= band
+    assert inside.mean() > 0.8, inside.mean()
+    truth = learned_or_nominal(kappa[:, None], EI * kappa + _ar1(t.size, 0.99, 2e-4, rng), EI * kappa, 3, 10,
+                               pooled=True)
+    assert np.max(standin_departure(grid, truth.to_dict())) < 0.05 * np.max(np.abs(EI * grid))
+    learned = learned_or_nominal(kappa[:, None], soft(kappa), EI * kappa, 3, 10, pooled=True)
+    assert learned.richer and not standin_departure(grid, learned.to_dict()).any()
+    from crgpr.learning.law_tables import bending_law_at_segments
+    P = rod_params(load_config("tests/smoke_config.yaml"))
+    mean, sd = bending_law_at_segments(".", [], P, grid, 100, 0, 0, choice=c.to_dict())
+    assert np.allclose(mean, (P.EI * (grid - P.kappa0))[:, None]) and sd.shape == (grid.size, P.N)
+    assert np.array_equal(sd, np.repeat(standin_departure(grid, c.to_dict())[:, None], P.N, axis=1))
+    man = {"nominal_laws": ["n1", "n2", "m"], "law_choice": {"m": c.to_dict()}}
+    assert nominal_choice(man) == c.to_dict()
+    assert nominal_choice({"nominal_laws": ["n1", "n2", "m"], "law_choice": None}) is None
+    assert nominal_choice({**man, "nominal_laws": ["n1", "n2"]}) is None
+
 
 @settings(max_examples=15, deadline=None)
 @given(scale=st.floats(1e-3, 1e3))

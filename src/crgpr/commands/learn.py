@@ -86,7 +86,7 @@ from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, ref
 from crgpr.learning.extrapolation import Reach, TangentContinuation, continue_table, law_reach
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
-from crgpr.learning.law_choice import bending_arclength, grey_box
+from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choice
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import LearnedRod
@@ -338,7 +338,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                        None if fit is None else manifest_warp(fit.to_dict()),
                        None if fit is None else manifest_warp_cov(fit.to_dict()), cam["extrapolation"],
                        rest_c, reach if "obj_m" in trained else None,
-                       None if fit is None else manifest_warp_truncation(fit.to_dict()))
+                       None if fit is None else manifest_warp_truncation(fit.to_dict()),
+                       nominal_choice(grey))
     manifest = {"kind": "crgpr_models", "features": features, "prefilter": prefilter_method, "input": kind,
                 "source": str(measured), "rod": params.to_dict(),
                 "config": {**(provenance or {}), **used_config(cfg, kind)}, "state": state_report,
@@ -422,21 +423,22 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
 def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
                 warp: Warp | None = None, warp_cov: np.ndarray | None = None,
                 extrapolation: dict[str, Any] | None = None, center: float | None = None,
-                reach: Reach | None = None, warp_truncation: np.ndarray | None = None
-                ) -> dict[str, Any]:
+                reach: Reach | None = None, warp_truncation: np.ndarray | None = None,
+                choice: dict[str, Any] | None = None) -> dict[str, Any]:
     """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
     (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
     where it has one (``warp_cov``, ``warp_truncation``: its band), continued beyond its reach
     (``learning.extrapolation``,
     ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature;
-    ``reach``: the one the record fit used, else found on the table written here); returns the
+    ``reach``: the one the record fit used, else found on the table written here; ``choice``: a
+    nominal bending law's ``law_choice`` entry, ``nominal_choice``); returns the
     manifest's entries (the covered range of every learned model's inputs, the bending law's
     reach, the file names)."""
     from crgpr.report.laws import law_figure
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
-    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov, warp_truncation)
+    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov, warp_truncation, choice)
     if reach is None and "obj_m" in trained and extrapolation is not None:
         reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]), center)
     entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict()}

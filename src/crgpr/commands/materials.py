@@ -27,6 +27,7 @@ from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import capped_config, learn, load_learned, read_manifest
 from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_parquet
+from crgpr.learning.law_choice import nominal_choice
 from crgpr.learning.law_tables import bending_law_at_segments
 from crgpr.learning.learned import frozen_after_divergence, rollout_members
 from crgpr.learning.warp import manifest_warp, manifest_warp_cov, manifest_warp_truncation
@@ -105,7 +106,7 @@ def law_scores(model_dir: str | Path, truth: RodParams, train: Trajectory, law_t
                                        int(law_table["max_points"]), seed, int(law_table["band_blocks"]),
                                        manifest_warp(man.get("record_fit")),
                                        manifest_warp_cov(man.get("record_fit")),
-                                       manifest_warp_truncation(man.get("record_fit")))
+                                       manifest_warp_truncation(man.get("record_fit")), nominal_choice(man))
     return law_accuracy(mean, sd, segment_moment_law(truth, x), where)
 
 

@@ -42,7 +42,7 @@ The two comparisons (``learned_or_nominal``, ``arclength_dependence``) differ on
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from itertools import combinations_with_replacement
 from typing import Any
 
@@ -73,9 +73,27 @@ class HeldoutChoice:
     heldout_log_ratio_se: float  # its standard error over the blocks [-]
     blocks: int
     degree: int
+    # a law of one input: the richer law's departure from the simpler one fitted on every block,
+    # sum_d b_d u^d, u = (x - center) / scale (``standin_departure``); None otherwise
+    standin: list[float] | None = None
+    standin_center: float | None = None
+    standin_scale: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def standin_departure(x: np.ndarray, choice: dict[str, Any] | None) -> np.ndarray:
+    """|sum_d b_d u^d|, u = (x - center) / scale, at the inputs x: how far the richer stand-in of
+    a law that was kept nominal (``choice``: its ``HeldoutChoice`` as a dict, fitted on all the
+    samples) departs from the nominal law; zeros without a stand-in or where the richer law was
+    chosen. Where the held-out blocks could not tell the two apart, this is the departure the
+    data did not rule out: the band of a nominal law the data chose (``learning.law_tables``)."""
+    x = np.asarray(x, dtype=float)
+    if not choice or choice.get("standin") is None or choice.get("richer"):
+        return np.zeros_like(x)
+    u = (x - float(choice["standin_center"])) / float(choice["standin_scale"])
+    return np.abs(sum(float(b) * u**d for d, b in enumerate(choice["standin"])))
 
 
 def poly_design(Z: np.ndarray, degree: int) -> np.ndarray:
@@ -159,7 +177,15 @@ def learned_or_nominal(X: np.ndarray, y: np.ndarray, nominal: np.ndarray, degree
     per-block log ratios (n1, n2, whose targets carry the prefilter's or the position
     reconstruction's systematic errors, and the momentum maps p / (rho A), p / (rho I))."""
     A = poly_design(X, degree)
-    return compare_heldout(y, np.zeros((A.shape[0], 0)), A, blocks, degree, offset=nominal, pooled=pooled)
+    choice = compare_heldout(y, np.zeros((A.shape[0], 0)), A, blocks, degree, offset=nominal, pooled=pooled)
+    X = np.asarray(X, dtype=float).reshape(A.shape[0], -1)
+    if X.shape[1] != 1:
+        return choice
+    b, *_ = np.linalg.lstsq(A, np.asarray(y, dtype=float).ravel() - np.asarray(nominal, dtype=float).ravel(),
+                            rcond=None)
+    sd = float(X[:, 0].std())
+    return replace(choice, standin=[float(v) for v in b], standin_center=float(X[:, 0].mean()),
+                   standin_scale=sd if sd > 0 else 1.0)
 
 
 def arclength_dependence(kappa: np.ndarray, s: np.ndarray, m: np.ndarray, degree: int, knots: int,
@@ -193,6 +219,14 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
                                       int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
     used = setting == "always" or (choice is not None and choice["richer"])
     return {"setting": setting, "used": bool(used), "choice": choice}
+
+
+def nominal_choice(man: dict[str, Any]) -> dict[str, Any] | None:
+    """The ``law_choice`` entry of the bending law m where the data chose its nominal law (a
+    manifest, or ``grey_box``'s result: ``nominal_laws`` holds m and ``law_choice`` decided), else
+    None: the band of that nominal law (``standin_departure``)."""
+    choice = (man.get("law_choice") or {}).get("m")
+    return choice if choice and "m" in (man.get("nominal_laws") or []) and not choice["richer"] else None
 
 
 def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np.ndarray, features: str,

@@ -38,6 +38,7 @@ import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
 from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
+from crgpr.learning.law_choice import standin_departure
 from crgpr.learning.warp import Warp, law_factor, segment_positions, shifted_kappa, warp_sd
 from crgpr.physics.params import RodParams
 
@@ -142,15 +143,18 @@ def _warped(mean: np.ndarray, sd: np.ndarray, kappa: np.ndarray | None, warp: Wa
 
 
 def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | None, n_grid: int, pad: float,
-                         truncation: np.ndarray | None = None) -> pd.DataFrame:
+                         truncation: np.ndarray | None = None, choice: dict[str, Any] | None = None
+                         ) -> pd.DataFrame:
     """The table of a nominal bending law EI (kappa - kappa0) that the record fit warped
     (``law_table``'s columns; input kappa, covered range the warp's [c - kappa_s, c + kappa_s]):
-    mean m w, sd |m| sd_w (0 without the warp's covariance), sd_points 0, sd_scale 1."""
+    mean m w, sd from the warp (0 without the warp's covariance) and, where the data chose the
+    nominal law (``choice``: its ``law_choice`` entry), the departure of the law's richer
+    stand-in (``law_choice.standin_departure``) times |w|; sd_points 0, sd_scale 1."""
     c, ks = float(warp[0]), float(warp[1])
     lo, hi = c - ks, c + ks
     g = np.linspace(lo - pad * (hi - lo), hi + pad * (hi - lo), n_grid)
     m = params.EI * (g - params.kappa0)
-    mean, sd = _warped(m, np.zeros_like(m), g, warp, warp_cov, None, truncation)
+    mean, sd = _warped(m, standin_departure(g, choice), g, warp, warp_cov, None, truncation)
     return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": mean, "sd": sd, "nominal": m,
                          "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                          "sd_points": 0, "sd_scale": 1.0, "at_s": np.nan})
@@ -158,16 +162,17 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
                seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None,
-               truncation: np.ndarray | None = None) -> pd.DataFrame:
+               truncation: np.ndarray | None = None, choice: dict[str, Any] | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
     ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``,
     ``warp_cov``, ``truncation``: the bending law's record-fit warp, its coefficient covariance and
-    truncation estimate, ``law_table``;
+    truncation estimate, ``law_table``; ``choice``: the bending law's ``law_choice`` entry, the
+    band of a nominal law the data chose, ``warped_nominal_table``;
     a bending law left nominal but warped is tabulated by ``warped_nominal_table``)."""
     out = []
     if warp is not None and "obj_m" not in trained:
         out.append(warped_nominal_table(params, warp, warp_cov, int(settings["n_grid"]),
-                                        float(settings["pad"]), truncation))
+                                        float(settings["pad"]), truncation, choice))
     for name in (m for m in LAW_MODELS if m in trained):
         stem = Path(model_dir) / name
         meta = json.loads(stem.with_suffix(".json").read_text())
@@ -180,21 +185,23 @@ def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, set
 
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
                             max_points: int, seed: int, band_blocks: int, warp: Warp | None = None,
-                            warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None
-                            ) -> tuple[np.ndarray, np.ndarray]:
+                            warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None,
+                            choice: dict[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
     (inputs other than kappa and s at their training medians); a nominal one (not in
-    ``trained``): EI (kappa - kappa0) of ``params`` with sd 0. Either times the record-fit
-    ``warp`` where the model has one (``learning.record_fit``)."""
+    ``trained``): EI (kappa - kappa0) of ``params`` with the sd of its richer stand-in's departure
+    where the data chose it (``choice``: its ``law_choice`` entry; else 0). Either times the
+    record-fit ``warp`` where the model has one (``learning.record_fit``)."""
     from crgpr.learning.features import segment_arclength
 
     kappa = np.asarray(kappa, dtype=float).ravel()
     N = params.N
     if "obj_m" not in trained:
         m = np.repeat((params.EI * (kappa - params.kappa0))[:, None], N, axis=1)
-        return _warped(m, np.zeros_like(m), kappa[:, None], warp, warp_cov, None, truncation)
+        sd = np.repeat(standin_departure(kappa, choice)[:, None], N, axis=1)
+        return _warped(m, sd, kappa[:, None], warp, warp_cov, None, truncation)
     stem = Path(model_dir) / "obj_m"
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
