@@ -43,7 +43,7 @@ Parameters (``RecordFit``):
   will, and the record's largest curvatures (at the clamp, where the positions' reconstruction
   attenuates them, so they lie beyond the law's covered range) show how steep the law goes on.
 
-A kept warp's truncation estimate (``truncation``): the warp of the next candidate number of
+A kept warp's truncation estimate (``record_stats.truncation``): the warp of the next candidate number of
 terms less the kept one's, both fitted on the first part (``warp.warp_sd`` adds it to the
 law's band: the coefficients' covariance holds their scatter, not the error of too few terms).
 
@@ -87,15 +87,14 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.learning.lm import evaluate_all, levenberg_marquardt, levenberg_marquardt_batch
+from crgpr.learning.record_stats import decide, truncation, warp_covariance
 from crgpr.learning.warp import admissible
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports
 from crgpr.physics.signals import Inputs
-from crgpr.stats import autocorrelation_time
 
 MODES: tuple[str, ...] = ("auto", "none")
 TAIL_LOG_BOUND = math.log(100.0)  # the tail factor g of the law's tangent is held to [1/100, 100] [-]
@@ -230,27 +229,6 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
     return residuals
 
 
-def warp_covariance(r: np.ndarray, J: np.ndarray, n_frames: int, K: int) -> np.ndarray:
-    """Covariance (K, K) of the warp coefficients (the last K columns of J) of a least-squares fit
-    with residuals r (frames x nodes, time-major) and Jacobian J: s^2 (J^T J)^-1, s^2 the residual
-    variance, times the residuals' correlation times along the record and along the rod (an
-    effective number of independent residuals; the Gauss-Newton covariance alone would count
-    every frame and node as independent)."""
-    R = np.asarray(r, dtype=float).reshape(n_frames, -1)
-    s2 = float(np.sum(R**2)) / max(R.size - J.shape[1], 1)
-    inflate = autocorrelation_time(R, 0) * autocorrelation_time(R, 1)
-    C = s2 * inflate * np.linalg.pinv(J.T @ J)
-    return C[-K:, -K:]
-
-
-def decide(e_start: np.ndarray, e_warp: np.ndarray, blocks: int) -> tuple[float, float, bool]:
-    """Held-out forecast comparison: per-block squared errors of the start-only and the warped
-    fits over the record's last part (``blocks`` contiguous blocks) -> ``consistent_gain``."""
-    masks = heldout_blocks(e_start.shape[0], blocks)
-    d = np.array([log_error_ratio(float(np.mean(e_start[m])), float(np.mean(e_warp[m]))) for m in masks])
-    return consistent_gain(d)
-
-
 def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.ndarray,
                      arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings, J: int,
                      n_fit: int, n_t: int, exact_start: bool, inputs: Inputs | None, ports: Ports | None,
@@ -312,19 +290,6 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
                        "rmse_bending_learned": rmse_learned},
             "terms": terms[i], "a": fits[i], "r": res[i], "full": full,
             "truncation": truncation(fits, terms, i, n_free)}
-
-
-def truncation(fits: list[np.ndarray], terms: list[int], i: int, w0: int) -> dict[str, Any]:
-    """The truncation estimate of the warp of ``terms[i]`` terms among the candidates' fits on the
-    same first part of the record (``fits``, parameter rows whose warp starts at column ``w0``):
-    the warp of the next number of terms less this one's, d_k = a'_k - a_k (the next larger
-    candidate's where there is one, it estimates this one's error; else the next smaller one's,
-    or no warp: conservative). ``warp.warp_sd`` adds it to the law's band."""
-    j = i + 1 if i + 1 < len(terms) else i - 1
-    K = max(terms)
-    other = fits[j][w0:w0 + K] if j >= 0 else np.zeros(K)
-    return {"truncation_coefficients": [float(v) for v in other - fits[i][w0:w0 + K]],
-            "truncation_terms": terms[j] if j >= 0 else 0}
 
 
 def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
