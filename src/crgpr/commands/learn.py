@@ -307,10 +307,10 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         damping = refine_by_rollout(damping, rmse, cam["bending_damping"])
     fit, refused, reach = None, [], None
     rest_c = odd if odd is not None else (None if rest is None else rest.kappa_rest)
-    if record_fit and "obj_m" in trained:  # the law beyond its reach as the rollouts will integrate it
-        reach = bending_reach(out, params, cam, seed, rest_c)
     if record_fit:
-        center = odd if odd is not None else (rest.kappa_rest if rest is not None else float(params.kappa0))
+        center = float(params.kappa0) if rest_c is None else rest_c
+        if "obj_m" in trained:  # the law beyond its reach as the rollouts will integrate it
+            reach = bending_reach(out, params, cam, seed, rest_c)
         kappa = training_data(arr, params, "obj_m", None, masks.get("obj_m", m_mask))[0][:, 0]
         learned_any = bool(trained) or (damping is not None and damping.kept)  # else: the nominal rod
         auto = cam["nominal_laws"] == "auto"

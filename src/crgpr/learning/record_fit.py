@@ -471,10 +471,10 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     which = "the nominal bending law" if bending.get("bending_nominal") else "the learned law"
     parts = [f"{int(along[b].sum())} {name} terms" for name, b in blocks_along.items() if along[b].any()]
     on_s = f" and a profile along s: {', '.join(parts)}" if parts else ""
+    tail_log = float(np.clip(a[-1], -TAIL_LOG_BOUND, TAIL_LOG_BOUND)) if free[at_tail].any() else 0.0
     kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms{on_s}, on {which}): forecasts "
                           "the held-out blocks consistently better", frame, along), **nominal,
-                   **(trunc if k else {}),
-                   tail_log_factor=float(np.log(tail_factor(a[-1]))) if free[at_tail].any() else 0.0)
+                   **(trunc if k else {}), tail_log_factor=tail_log)
     n_w, n_tail = k + int(along.sum()), int(free[at_tail].sum())
     cov = (warp_covariance(last["r"], last["J"], n_t, n_w + n_tail)[:n_w, :n_w] if "J" in last
            else np.full((n_w, n_w), np.nan))
