@@ -393,9 +393,69 @@ def test_problems_fitted_side_by_side_take_the_steps_they_take_alone():
                          for a in A])
     starts = [np.zeros(3), np.array([2.9, 0.5, 0.0]), np.array([1.0, 1.0, 1.0])]
     frees = [np.ones(3, bool), np.array([True, True, False]), np.zeros(3, bool)]
-    alone = [levenberg_marquardt(residuals, a, f, 6) for a, f in zip(starts, frees, strict=True)]
+    alone = [levenberg_marquardt(residuals, a, f, 6, 1e-4) for a, f in zip(starts, frees, strict=True)]
     n_alone, calls["n"] = calls["n"], 0
-    together = levenberg_marquardt_batch(residuals, starts, frees, 6)
+    together = levenberg_marquardt_batch(residuals, starts, frees, 6, 1e-4)
     for (a1, r1), (a2, r2) in zip(alone, together, strict=True):
         assert np.array_equal(a1, a2) and r1 == r2
     assert alone[0][1] < 1e-5 and calls["n"] < n_alone
+
+
+def test_a_fit_stops_where_the_gauss_newton_step_predicts_less_than_the_tolerance():
+    """``levenberg_marquardt`` stops at convergence: where the Gauss-Newton step at its point
+    predicts a gain below ``tolerance`` of the cost; ``iterations`` caps the accepted steps of a
+    fit that has more to gain."""
+    t = np.linspace(0.0, 2.0, 80)
+    noise = 0.05 * np.random.default_rng(3).standard_normal(t.size)  # the optimum's cost is > 0
+    target = 2.0 * np.exp(-1.3 * t) * np.cos(3.0 * t) + noise
+
+    def residuals(A):
+        return np.stack([a[0] * np.exp(-a[1] * t) * np.cos(a[2] * t) - target for a in A])
+
+    def fit(iterations, tolerance):
+        costs = []  # the cost of each evaluated point (row 0 of every call)
+
+        def counted(A):
+            R = residuals(A)
+            costs.append(float(np.mean(R[0] ** 2)))
+            return R
+        a, rms = levenberg_marquardt(counted, np.array([1.0, 0.5, 2.5]), np.ones(3, bool), iterations,
+                                     tolerance)
+        accepted = [costs[0]]
+        for c in costs[1:]:
+            if c < accepted[-1]:
+                accepted.append(c)
+        return a, rms, len(accepted) - 1
+
+    def predicted_gain(a):  # the Gauss-Newton step's predicted gain at a, over the cost
+        r = residuals(a[None])[0]
+        J = np.stack([(residuals((a + 1e-6 * e)[None])[0] - r) / 1e-6 for e in np.eye(3)], axis=1)
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        return (np.sum(r**2) - np.sum((r + J @ step) ** 2)) / np.sum(r**2)
+
+    a, rms, steps = fit(100, 1e-2)
+    assert predicted_gain(a) < 1e-2 < predicted_gain(np.array([1.0, 0.5, 2.5]))
+    a_tight, rms_tight, steps_tight = fit(100, 1e-12)
+    assert np.allclose(a_tight, [2.0, 1.3, 3.0], atol=0.1) and rms_tight <= rms
+    assert predicted_gain(a_tight) < 1e-8 and steps < steps_tight < 100
+    a_capped, rms_capped, steps_capped = fit(2, 1e-12)
+    assert steps_capped == 2 and rms_capped > rms_tight and predicted_gain(a_capped) > 1e-2
+
+
+def test_a_short_step_far_from_the_optimum_does_not_end_the_fit():
+    """In a curved valley (Rosenbrock's residuals) the damped steps gain little, some below
+    ``tolerance`` of the cost, while the Gauss-Newton step still predicts the whole cost: the fit
+    goes on to the optimum."""
+    costs = []
+
+    def residuals(A):
+        R = np.stack([[10.0 * (a[1] - a[0] ** 2), 1.0 - a[0]] for a in A])
+        costs.append(float(np.mean(R[0] ** 2)))
+        return R
+    a, rms = levenberg_marquardt(residuals, np.array([-1.2, 1.0]), np.ones(2, bool), 100, 0.1)
+    accepted = [costs[0]]
+    for c in costs[1:]:
+        if c < accepted[-1]:
+            accepted.append(c)
+    gains = -np.diff(accepted) / np.array(accepted[:-1])  # each step's gain over the cost it starts from
+    assert np.any(gains < 0.1) and np.allclose(a, [1.0, 1.0], atol=1e-6) and rms < 1e-6

@@ -19,15 +19,15 @@ MAX_DIVERGED = 8  # trials of one problem that may leave the physical range (lam
 
 
 def levenberg_marquardt(residuals: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray,
-                        free: np.ndarray, iterations: int, final: dict[str, np.ndarray] | None = None
-                        ) -> tuple[np.ndarray, float]:
+                        free: np.ndarray, iterations: int, tolerance: float,
+                        final: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, float]:
     """Minimise mean(r^2) over the parameters where ``free`` (bool, like a0), the others held at
     a0: Levenberg-Marquardt with forward-difference Jacobians, each evaluation (a point and its
     perturbations) one call of ``residuals``. Returns (parameters, RMS residual); the start's
     RMS is inf where the first evaluation diverges. ``final`` (a dict) receives the residuals
     ``r`` and the Jacobian ``J`` (columns: the free parameters) at the returned point. One
     problem of ``levenberg_marquardt_batch``."""
-    (a, rms), = levenberg_marquardt_batch(residuals, [a0], [free], iterations,
+    (a, rms), = levenberg_marquardt_batch(residuals, [a0], [free], iterations, tolerance,
                                           None if final is None else [final])
     return a, rms
 
@@ -47,6 +47,14 @@ class _Problem:
         A = np.repeat(point[None], self.idx.size + 1, axis=0)
         A[1 + np.arange(self.idx.size), self.idx] += FD_STEP
         return A
+
+    def converged(self, tolerance: float) -> bool:
+        """Whether the Gauss-Newton step at the current point, the linear model's best, would lower
+        the cost by less than ``tolerance`` of it: the fit has nothing left to gain (unlike a short,
+        damped step that gains little far from the optimum)."""
+        step = np.linalg.lstsq(self.J, -self.r, rcond=None)[0]
+        predicted = float(np.sum(self.r**2) - np.sum((self.r + self.J @ step) ** 2))
+        return predicted < tolerance * float(np.sum(self.r**2))
 
     def propose(self) -> np.ndarray:
         JTJ, g = self.J.T @ self.J, self.J.T @ self.r
@@ -70,7 +78,7 @@ def evaluate_all(residuals: Callable[[np.ndarray], np.ndarray | None], blocks: l
 
 def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | None],
                               starts: list[np.ndarray], frees: list[np.ndarray], iterations: int,
-                              finals: list[dict[str, np.ndarray]] | None = None
+                              tolerance: float, finals: list[dict[str, np.ndarray]] | None = None
                               ) -> list[tuple[np.ndarray, float]]:
     """``levenberg_marquardt`` of several problems on the same residual function, each problem's
     points and Jacobian perturbations evaluated together in one call per round (a rollout's
@@ -79,9 +87,11 @@ def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | Non
     damping factors lambda (x10 after a trial that does not lower the cost), /3 after an accepted
     step; a trial that leaves the physical range is refused too (lambda x10) but counts apart,
     up to ``MAX_DIVERGED`` in all (far from the fit, a long step can throw the rod out of range
-    where a shorter one lowers the cost). It stops after ``iterations`` accepted steps, four
-    refused trials in a row, ``MAX_DIVERGED`` diverged ones, or a cost gain below 1e-4 of the
-    cost. Returns (parameters, RMS residual) per problem."""
+    where a shorter one lowers the cost). It stops at convergence, where the Gauss-Newton step at
+    the current point predicts a gain below ``tolerance`` of the cost (``_Problem.converged``),
+    or after ``iterations`` accepted steps (the cap of a fit that starts far from its optimum),
+    four refused trials in a row or ``MAX_DIVERGED`` diverged ones. Returns (parameters, RMS
+    residual) per problem."""
     probs = [_Problem(a0, f) for a0, f in zip(starts, frees, strict=True)]
     active = [p for p in probs if p.idx.size]
     for p in probs:
@@ -95,7 +105,7 @@ def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | Non
         else:
             p.r, p.J = ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
             p.cost = float(np.mean(p.r**2))
-            p.done = iterations <= 0
+            p.done = iterations <= 0 or p.converged(tolerance)
     while True:
         live = [p for p in active if not p.done]
         if not live:
@@ -103,10 +113,9 @@ def levenberg_marquardt_batch(residuals: Callable[[np.ndarray], np.ndarray | Non
         for p, ev in zip(live, evaluate_all(residuals, [p.propose() for p in live]), strict=True):
             new = math.inf if ev is None else float(np.mean(ev[0] ** 2))
             if new < p.cost:
-                gain = p.cost - new
                 p.a, p.r, p.J = p.trial, ev[0], ((ev[1:] - ev[0]) / FD_STEP).T
                 p.cost, p.lam, p.it, p.tries = new, p.lam / 3.0, p.it + 1, 0
-                p.done = p.it >= iterations or gain < 1e-4 * p.cost
+                p.done = p.it >= iterations or p.converged(tolerance)
             elif ev is None:  # the trial left the physical range: a shorter step, up to MAX_DIVERGED times
                 p.lam, p.diverged = p.lam * 10.0, p.diverged + 1
                 p.done = p.diverged >= MAX_DIVERGED

@@ -232,7 +232,7 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
 def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.ndarray,
                      arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings, J: int,
                      n_fit: int, n_t: int, exact_start: bool, inputs: Inputs | None, ports: Ports | None,
-                     iters: int, blocks: int) -> dict[str, Any]:
+                     lm: tuple[int, float], blocks: int) -> dict[str, Any]:
     """The nominal rod on the same record: its start fitted on the first ``n_fit`` frames, from
     the learned rod's fitted corrections ``start`` (2 J,) (the recorded start with
     ``exact_start``), compared with the learned rod's residuals ``learned`` (n_t, nodes): held
@@ -244,7 +244,7 @@ def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.nda
     full = record_residuals(model_for, arr, params, settings, J, n_t, 0.0, exact_start, inputs, ports)
     a = np.asarray(start, dtype=float)[:2 * J]
     if J:
-        a = levenberg_marquardt(part, a, np.ones(2 * J, dtype=bool), iters)[0]
+        a = levenberg_marquardt(part, a, np.ones(2 * J, dtype=bool), *lm)[0]
     r = full(a[None])
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
     if r is None:
@@ -259,7 +259,8 @@ def _against_nominal(nominal_rod: LearnedRod, learned: np.ndarray, start: np.nda
 def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned: np.ndarray,
                      start: np.ndarray, arr: dict[str, np.ndarray], params: RodParams, settings: SimSettings,
                      J: int, n_fit: int, n_t: int, damping: float, exact_start: bool, inputs: Inputs | None,
-                     ports: Ports | None, terms: list[int], iters: int, blocks: int) -> dict[str, Any]:
+                     ports: Ports | None, terms: list[int], lm: tuple[int, float], blocks: int
+                     ) -> dict[str, Any]:
     """The rod with the bending law nominal (``rod_for(W, c)``, its warp W and damping c) fitted as
     the learned one is: each warp candidate of ``terms`` with the start and the damping's size,
     from the learned rod's start-alone fit ``start``, on the first ``n_fit`` frames, the candidates
@@ -272,7 +273,7 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
     part = record_residuals(rod_for, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
     n_free, a0 = 2 * J + int(damping > 0), np.asarray(start, dtype=float)
     fits = [a for a, _ in levenberg_marquardt_batch(
-        part, [a0] * len(terms), [np.arange(a0.size) < n_free + k for k in terms], iters)]
+        part, [a0] * len(terms), [np.arange(a0.size) < n_free + k for k in terms], *lm)]
     rows = _rows(full, np.stack(fits))
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
     if rows is None:
@@ -353,7 +354,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     within = arr["t"] <= arr["t"][0] + float(cfg["max_record_s"]) + 1e-12
     arr = {k: v[within] if isinstance(v, np.ndarray) and v.shape[:1] == within.shape else v
            for k, v in arr.items()}
-    n_t, iters = arr["t"].size, int(cfg["iterations"])
+    n_t, lm = arr["t"].size, (int(cfg["iterations"]), float(cfg["tolerance"]))
     n_fit = int(round((1.0 - float(cfg["holdout_fraction"])) * n_t))
     if n_fit < 3 or n_t - n_fit < 2 * blocks:
         return RecordFit(False, float(center), float(kappa_scale), [], [0.0] * (2 * J), math.nan,
@@ -371,11 +372,11 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     if start_free.any():
         r0 = full(zero[None])
         learned = math.inf if r0 is None else float(np.sqrt(np.mean(r0**2)))
-        a_start, _ = levenberg_marquardt(part, zero, start_free, iters)
+        a_start, _ = levenberg_marquardt(part, zero, start_free, *lm)
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
     fits = [a for a, _ in levenberg_marquardt_batch(  # each from the start-alone fit, side by side
-        part, [a_start] * len(terms), [(np.arange(n_a) < 2 * J + nd + k) | at_tail for k in terms], iters)]
+        part, [a_start] * len(terms), [(np.arange(n_a) < 2 * J + nd + k) | at_tail for k in terms], *lm)]
     rows = _rows(full, np.stack([a_start, *fits]))
     if rows is not None and not start_free.any():
         learned = float(np.sqrt(np.mean(rows[0] ** 2)))
@@ -425,7 +426,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         if b.stop > b.start:
             free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
             free[b] = True
-            a_s = levenberg_marquardt(part, a_pick, free, iters)[0]
+            a_s = levenberg_marquardt(part, a_pick, free, *lm)[0]
             r_s = _rows(full, a_s[None])
             if r_s is None:
                 continue
@@ -436,7 +437,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                 along[b], a_pick, r_pick = True, a_s, r_s
     if nominal_bending is not None:
         alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
-                               damping, exact_start, inputs, ports, terms, iters, blocks)
+                               damping, exact_start, inputs, ports, terms, lm, blocks)
         bending.update(alt["record"])
         if bending["bending_nominal"]:
             k, a_pick, r_pick, full_pick = alt["terms"], alt["a"], alt["r"], alt["full"]
@@ -446,7 +447,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
             ratio, se = bending["bending_log_ratio"], bending["bending_log_ratio_se"]
     if nominal_rod is not None:
         nominal = _against_nominal(nominal_rod, r_pick, a_start, arr, params, settings, J, n_fit, n_t,
-                                   exact_start, inputs, ports, iters, blocks)
+                                   exact_start, inputs, ports, lm, blocks)
         if nominal["nominal_fallback"]:
             bending["bending_nominal"] = False
             return replace(result(0, a_start, start_only, start_only, math.nan, math.nan,
@@ -462,7 +463,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     last: dict[str, np.ndarray] = {}
     on_law = k and not bending.get("bending_nominal")  # the learned law's warp: its tail too
     free = (np.arange(n_a) < w0 + k) | along | (at_tail if on_law else False)
-    a, rms = levenberg_marquardt(full_pick, a_pick, free, iters, last)
+    a, rms = levenberg_marquardt(full_pick, a_pick, free, *lm, last)
     if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
         bending["bending_nominal"] = False
         return replace(result(0, a_start, start_only, start_only, ratio, se,
