@@ -401,6 +401,16 @@ def test_problems_fitted_side_by_side_take_the_steps_they_take_alone():
     assert alone[0][1] < 1e-5 and calls["n"] < n_alone
 
 
+def _accepted_costs(costs: list[float]) -> np.ndarray:
+    """The costs of a fit's accepted points, from the cost of every point it evaluated (in order):
+    the start and each trial that lowered the best cost so far."""
+    accepted = [costs[0]]
+    for c in costs[1:]:
+        if c < accepted[-1]:
+            accepted.append(c)
+    return np.array(accepted)
+
+
 def test_a_fit_stops_where_the_gauss_newton_step_predicts_less_than_the_tolerance():
     """``levenberg_marquardt`` stops at convergence: where the Gauss-Newton step at its point
     predicts a gain below ``tolerance`` of the cost; ``iterations`` caps the accepted steps of a
@@ -421,11 +431,7 @@ def test_a_fit_stops_where_the_gauss_newton_step_predicts_less_than_the_toleranc
             return R
         a, rms = levenberg_marquardt(counted, np.array([1.0, 0.5, 2.5]), np.ones(3, bool), iterations,
                                      tolerance)
-        accepted = [costs[0]]
-        for c in costs[1:]:
-            if c < accepted[-1]:
-                accepted.append(c)
-        return a, rms, len(accepted) - 1
+        return a, rms, _accepted_costs(costs).size - 1
 
     def predicted_gain(a):  # the Gauss-Newton step's predicted gain at a, over the cost
         r = residuals(a[None])[0]
@@ -453,9 +459,6 @@ def test_a_short_step_far_from_the_optimum_does_not_end_the_fit():
         costs.append(float(np.mean(R[0] ** 2)))
         return R
     a, rms = levenberg_marquardt(residuals, np.array([-1.2, 1.0]), np.ones(2, bool), 100, 0.1)
-    accepted = [costs[0]]
-    for c in costs[1:]:
-        if c < accepted[-1]:
-            accepted.append(c)
-    gains = -np.diff(accepted) / np.array(accepted[:-1])  # each step's gain over the cost it starts from
+    accepted = _accepted_costs(costs)
+    gains = -np.diff(accepted) / accepted[:-1]  # each step's gain over the cost it starts from
     assert np.any(gains < 0.1) and np.allclose(a, [1.0, 1.0], atol=1e-6) and rms < 1e-6
