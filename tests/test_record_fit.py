@@ -231,6 +231,29 @@ def test_more_warp_terms_are_taken_only_where_they_forecast_better_than_fewer(sm
     assert two.truncation_terms == 1 and -0.5 < two.truncation_coefficients[1] < -0.25, two
 
 
+def test_a_larger_warp_is_offered_only_while_the_held_out_blocks_take_more_terms(smoke):
+    """Candidates of one, two and three terms: the third is fitted only where the second was
+    chosen. A law stiffer by a constant factor stops at the second candidate; one whose
+    stiffening grows with the curvature (two terms) is offered the third, does not take it, and
+    keeps the two-term warp it gets without the third on offer, bit for bit (every candidate is
+    fitted from the start-alone fit), with the third as its truncation estimate."""
+    P, sim, rf = smoke
+    rf = {**rf, "warp_terms": [3, 1, 2]}  # any order: the candidates are taken fewest terms first
+    stiffer = _record(P, np.array([0.08]), 20.0, 1e-4, seed=1)
+    one = fit_record(lambda W, c: _nominal_rod(P, W, 20.0, c), stiffer, P, sim, 0.0, 20.0, rf)
+    assert [c["terms"] for c in one.candidates] == [1, 2] and one.warp_terms == 1, one
+    true, scale = np.array([0.02, 0.4]), 9.0
+    record = _record(P, true, scale, 1e-4, seed=4)
+    two = fit_record(lambda W, c: _nominal_rod(P, W, scale, c), record, P, sim, 0.0, scale, rf)
+    assert [c["terms"] for c in two.candidates] == [1, 2, 3] and two.candidates[2]["against_terms"] == 2, two
+    assert two.warp_terms == 2 and two.candidates[1]["chosen"] and not two.candidates[2]["chosen"], two
+    assert np.allclose(two.coefficients, true, atol=0.03), two
+    without = fit_record(lambda W, c: _nominal_rod(P, W, scale, c), record, P, sim, 0.0, scale,
+                         {**rf, "warp_terms": [1, 2]})
+    assert two.coefficients == without.coefficients and two.candidates[:2] == without.candidates, without
+    assert two.truncation_terms == 3 and without.truncation_terms == 1, (two, without)
+
+
 def test_a_stiffness_profile_along_s_is_found_where_the_law_takes_s_and_not_where_it_is_uniform(smoke):
     """A rod whose stiffness varies along s (v(s) with b = (0.15, -0.08): 24 % softer at the clamp
     than at the tip, graded like a tapered rod) and a learned law that is uniform: offered a

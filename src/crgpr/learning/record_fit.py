@@ -44,18 +44,19 @@ Parameters (``RecordFit``):
   attenuates them, so they lie beyond the law's covered range) show how steep the law goes on.
 
 A kept warp's truncation estimate (``record_stats.truncation``): the warp of the next candidate number of
-terms less the kept one's, both fitted on the first part (``warp.warp_sd`` adds it to the
+terms offered less the kept one's, both fitted on the first part (``warp.warp_sd`` adds it to the
 law's band: the coefficients' covariance holds their scatter, not the error of too few terms).
 
 Fit: Levenberg-Marquardt on the residuals theta(t, s_i) - theta_rec(t, s_i) over the free nodes
 at the record's frames, the Jacobian by forward differences, each evaluation one batched rollout
 (``learned.rollout``). Decision from the data (``decide``): the start alone and the start with
 the warp of each candidate number of terms K (``warp_terms``; each from the start-alone fit,
-all candidates side by side in the same batched rollouts) are fitted on the first 1 - f of the
+the first two side by side in the same batched rollouts) are fitted on the first 1 - f of the
 record and compared on its last f, cut into ``blocks`` contiguous blocks
-(``laws.consistent_gain``). Forward selection: a candidate
+(``laws.consistent_gain``). Forward selection (``select_terms``): a candidate
 replaces the current choice (at first the start alone) only where it forecasts the held-out
-blocks consistently better than that choice; a chosen warp is then refitted on the whole
+blocks consistently better than that choice, and a candidate beyond the second is offered only
+where the one before it was chosen; a chosen warp is then refitted on the whole
 record. Where none is chosen the law stays as the regression learned it. The damping's size is
 free in every fit (the damping itself was decided by its own held-out blocks); the fit that is
 kept sets it.
@@ -88,7 +89,8 @@ from typing import Any
 import numpy as np
 
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
-from crgpr.learning.lm import evaluate_all, levenberg_marquardt, levenberg_marquardt_batch
+from crgpr.learning.lm import levenberg_marquardt
+from crgpr.learning.record_select import batch_rows, select_terms
 from crgpr.learning.record_stats import decide, truncation, warp_covariance
 from crgpr.learning.warp import admissible
 from crgpr.physics.integrator import SimulationDiverged
@@ -272,18 +274,14 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
     full = record_residuals(rod_for, arr, params, settings, J, n_t, damping, exact_start, inputs, ports)
     part = record_residuals(rod_for, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
     n_free, a0 = 2 * J + int(damping > 0), np.asarray(start, dtype=float)
-    fits = [a for a, _ in levenberg_marquardt_batch(
-        part, [a0] * len(terms), [np.arange(a0.size) < n_free + k for k in terms], *lm)]
-    rows = _rows(full, np.stack(fits))
+    sel = select_terms(part, full, a0, terms, lambda k: np.arange(a0.size) < n_free + k, lm, n_fit, n_t,
+                        blocks)
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
-    if rows is None:
+    if sel is None:
         return {"record": {"bending_nominal": False, "rmse_bending_nominal": math.inf,
                            "rmse_bending_learned": rmse_learned}}
-    res = rows.reshape(len(terms), n_t, -1)
-    i = 0
-    for j in range(1, len(terms)):
-        if decide(res[i, n_fit:] ** 2, res[j, n_fit:] ** 2, blocks)[2]:
-            i = j
+    fits, res, i, _ = sel
+    terms = terms[:len(fits)]  # the candidates offered
     ratio, se, better = decide(learned[n_fit:] ** 2, res[i, n_fit:] ** 2, blocks)
     rmse = float(np.sqrt(np.mean(res[i] ** 2)))
     return {"record": {"bending_nominal": better or rmse < rmse_learned, "bending_terms": terms[i],
@@ -291,16 +289,6 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
                        "rmse_bending_learned": rmse_learned},
             "terms": terms[i], "a": fits[i], "r": res[i], "full": full,
             "truncation": truncation(fits, terms, i, n_free)}
-
-
-def _rows(residuals: Callable[[np.ndarray], np.ndarray | None], A: np.ndarray) -> np.ndarray | None:
-    """``residuals`` of the rows of A in one batch (``evaluate_all``, one block per row); a
-    diverged row's residuals set to pi (a forecast no better than any angle); None where the
-    first row (the start alone) diverges."""
-    out = evaluate_all(residuals, [a[None] for a in A])
-    if out[0] is None:
-        return None
-    return np.stack([np.full_like(out[0][0], math.pi) if r is None else r[0] for r in out])
 
 
 def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str, np.ndarray],
@@ -321,11 +309,11 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     frames per block keeps the law as learned.
 
     The warp's number of terms is chosen from the candidates ``warp_terms`` (ascending) by
-    forward selection on the held-out blocks: each candidate is fitted on the first part from the
-    start-alone fit (the candidates side by side, ``levenberg_marquardt_batch``), and replaces the
-    current choice (at first: the start alone, no warp) only where it forecasts the held-out blocks
-    consistently better than that choice (``decide``). Every comparison is recorded
-    (``candidates``).
+    forward selection on the held-out blocks (``select_terms``): each candidate is fitted on the
+    first part from the start-alone fit, and replaces the current choice (at first: the start
+    alone, no warp) only where it forecasts the held-out blocks consistently better than that
+    choice (``decide``); a candidate beyond the second is offered only where the one before it was
+    chosen. Every comparison made is recorded (``candidates``).
 
     ``nominal_rod`` (the rod with every law nominal and no learned damping), its start fitted on
     the same first part: its held-out blocks are compared with the chosen learned rod's;
@@ -375,11 +363,10 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
         a_start, _ = levenberg_marquardt(part, zero, start_free, *lm)
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
-    fits = [a for a, _ in levenberg_marquardt_batch(  # each from the start-alone fit, side by side
-        part, [a_start] * len(terms), [(np.arange(n_a) < 2 * J + nd + k) | at_tail for k in terms], *lm)]
-    rows = _rows(full, np.stack([a_start, *fits]))
-    if rows is not None and not start_free.any():
-        learned = float(np.sqrt(np.mean(rows[0] ** 2)))
+    sel = select_terms(part, full, a_start, terms, lambda k: (np.arange(n_a) < 2 * J + nd + k) | at_tail,
+                        lm, n_fit, n_t, blocks, base=a_start)
+    if sel is not None and not start_free.any():
+        learned = float(np.sqrt(np.mean(sel[1][0] ** 2)))
     candidates: list[dict[str, Any]] = []  # each candidate's held-out comparison
     bending: dict[str, Any] = {}  # the comparison with the nominal bending law (nominal_bending)
 
@@ -400,24 +387,23 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                                  time.perf_counter() - t_start,
                                  float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
                                  bool(exact_start), None, k, candidates), **bending, **prof)
-    if rows is None:
+    if sel is None:
         return result(0, zero, math.inf, learned, math.nan, math.nan, "a fitted rod left the physical range")
-    res = rows.reshape(len(terms) + 1, n_t, -1)
+    fits, res, chosen, steps = sel  # rows of res: 0 the start alone, then each candidate offered
+    offered = terms[:len(fits)]
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
     held = res[:, n_fit:] ** 2
-    chosen = 0  # index into rows: 0 the start alone
-    for i, k in enumerate(terms, start=1):
-        ratio, se, better = decide(held[0], held[i], blocks)
-        step = decide(held[chosen], held[i], blocks) if chosen else (ratio, se, better)
+    current = 0
+    for i, (k, step) in enumerate(zip(offered, steps, strict=True), start=1):
+        ratio, se, _ = decide(held[0], held[i], blocks)
         candidates.append({"terms": k, "heldout_log_ratio": ratio, "heldout_log_ratio_se": se,
-                           "against_terms": terms[chosen - 1] if chosen else 0,
+                           "against_terms": offered[current - 1] if current else 0,
                            "gain_log_ratio": step[0], "gain_log_ratio_se": step[1], "chosen": False})
-        if step[2]:
-            chosen = i
+        current = i if step[2] else current
     # the pick so far: the learned law, warped where a candidate was chosen
-    k = terms[chosen - 1] if chosen else 0
+    k = offered[chosen - 1] if chosen else 0
     a_pick, r_pick, full_pick = (fits[chosen - 1] if chosen else a_start), res[chosen], full
-    trunc = truncation(fits, terms, chosen - 1, w0) if chosen else {}
+    trunc = truncation(fits, offered, chosen - 1, w0) if chosen else {}
     frame = (float(center), float(kappa_scale))
     pick = candidates[chosen - 1] if chosen else candidates[0]
     ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
@@ -427,7 +413,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
             free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
             free[b] = True
             a_s = levenberg_marquardt(part, a_pick, free, *lm)[0]
-            r_s = _rows(full, a_s[None])
+            r_s = batch_rows(full, a_s[None])
             if r_s is None:
                 continue
             r_s = r_s.reshape(n_t, -1)
