@@ -275,7 +275,7 @@ def _nominal_bending(rod_for: Callable[[np.ndarray, float], LearnedRod], learned
     part = record_residuals(rod_for, arr, params, settings, J, n_fit, damping, exact_start, inputs, ports)
     n_free, a0 = 2 * J + int(damping > 0), np.asarray(start, dtype=float)
     sel = select_terms(part, full, a0, terms, lambda k: np.arange(a0.size) < n_free + k, lm, n_fit, n_t,
-                        blocks)
+                       blocks)
     rmse_learned = float(np.sqrt(np.mean(learned**2)))
     if sel is None:
         return {"record": {"bending_nominal": False, "rmse_bending_nominal": math.inf,
@@ -364,7 +364,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     else:  # nothing but the warp to fit: the start-only rod is the learned one (its RMSE below)
         learned, a_start = math.nan, zero
     sel = select_terms(part, full, a_start, terms, lambda k: (np.arange(n_a) < 2 * J + nd + k) | at_tail,
-                        lm, n_fit, n_t, blocks, base=a_start)
+                       lm, n_fit, n_t, blocks, base=a_start)
     if sel is not None and not start_free.any():
         learned = float(np.sqrt(np.mean(sel[1][0] ** 2)))
     candidates: list[dict[str, Any]] = []  # each candidate's held-out comparison

@@ -25,14 +25,16 @@ def select_terms(part: Callable[[np.ndarray], np.ndarray | None],
     Each candidate is fitted from ``a0`` on the first part, the first two side by side
     (``levenberg_marquardt_batch``: a second costs little more than one), each further one only
     where the one before it was chosen: a larger warp is offered only while the held-out blocks
-    keep taking more terms (a fifth term offered unconditionally was taken on a small held-out
-    gain over three where four had not been, and forecast unseen inputs worse: docs/learned-laws.md).
-    ``part``, ``full``: the record's residuals (``record_fit.record_residuals``) on its first part
-    and on all of it; ``free_of(k)``: the free parameters with k terms; ``lm``: (iterations,
-    tolerance). Returns the fits made, the residual rows (base first where given, then each fit; a fit whose
-    rod left the physical range at pi), the index of the choice among those rows and each
-    candidate's comparison with the choice before it; None where the first row left the physical
-    range."""
+    keep taking more terms (offered unconditionally, a fifth term was taken on a small held-out
+    gain over three where four had not been, and forecast unseen inputs worse;
+    docs/learned-laws.md).
+
+    ``part``, ``full``: the record's residuals (``record_fit.record_residuals``) on its first
+    part and on all of it; ``free_of(k)``: the free parameters with k terms; ``lm``:
+    (iterations, tolerance). Returns the fits made, the residual rows (base first where given,
+    then each fit; a fit whose rod left the physical range at pi), the index of the choice among
+    those rows and each candidate's comparison with the choice before it; None where the first
+    row left the physical range."""
     fits: list[np.ndarray] = []
     steps: list[tuple[float, float, bool]] = []
     res = np.empty((0, 0))
