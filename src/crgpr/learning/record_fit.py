@@ -393,13 +393,11 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     offered = terms[:len(fits)]
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
     held = res[:, n_fit:] ** 2
-    current = 0
-    for i, (k, step) in enumerate(zip(offered, steps, strict=True), start=1):
+    for i, (k, (against, gain, gain_se, _)) in enumerate(zip(offered, steps, strict=True), start=1):
         ratio, se, _ = decide(held[0], held[i], blocks)
         candidates.append({"terms": k, "heldout_log_ratio": ratio, "heldout_log_ratio_se": se,
-                           "against_terms": offered[current - 1] if current else 0,
-                           "gain_log_ratio": step[0], "gain_log_ratio_se": step[1], "chosen": False})
-        current = i if step[2] else current
+                           "against_terms": offered[against - 1] if against else 0,
+                           "gain_log_ratio": gain, "gain_log_ratio_se": gain_se, "chosen": False})
     # the pick so far: the learned law, warped where a candidate was chosen
     k = offered[chosen - 1] if chosen else 0
     a_pick, r_pick, full_pick = (fits[chosen - 1] if chosen else a_start), res[chosen], full

@@ -17,7 +17,7 @@ def select_terms(part: Callable[[np.ndarray], np.ndarray | None],
                  full: Callable[[np.ndarray], np.ndarray | None], a0: np.ndarray, terms: list[int],
                  free_of: Callable[[int], np.ndarray], lm: tuple[int, float], n_fit: int, n_t: int,
                  blocks: int, base: np.ndarray | None = None
-                 ) -> tuple[list[np.ndarray], np.ndarray, int, list[tuple[float, float, bool]]] | None:
+                 ) -> tuple[list[np.ndarray], np.ndarray, int, list[tuple[int, float, float, bool]]] | None:
     """Forward selection of the warp's number of terms among ``terms`` (ascending) on the
     held-out blocks (frames from ``n_fit`` of ``n_t``): a candidate replaces the current choice
     where it forecasts them consistently better (``decide``); the current choice is at first the
@@ -33,10 +33,10 @@ def select_terms(part: Callable[[np.ndarray], np.ndarray | None],
     part and on all of it; ``free_of(k)``: the free parameters with k terms; ``lm``:
     (iterations, tolerance). Returns the fits made, the residual rows (base first where given,
     then each fit; a fit whose rod left the physical range at pi), the index of the choice among
-    those rows and each candidate's comparison with the choice before it; None where the first
-    row left the physical range."""
+    those rows and each candidate's comparison with the choice before it (that choice's row, the
+    log ratio, its standard error, taken); None where the first row left the physical range."""
     fits: list[np.ndarray] = []
-    steps: list[tuple[float, float, bool]] = []
+    steps: list[tuple[int, float, float, bool]] = []
     res = np.empty((0, 0))
     chosen = 0
 
@@ -57,7 +57,7 @@ def select_terms(part: Callable[[np.ndarray], np.ndarray | None],
         fits += new
         for i in range(max(len(res) - len(new), 1), len(res)):
             step = decide(held(chosen), held(i), blocks)
-            steps.append(step)
+            steps.append((chosen, *step))
             if step[2]:
                 chosen = i
         if chosen != len(res) - 1:
