@@ -358,3 +358,34 @@ def test_smoothed_moment_targets_pair_a_linear_law_with_the_rebuilt_curvature(si
         k_hat, m = X[:, 0].reshape(-1, P.N), m.reshape(-1, P.N)
         dev[targets] = max(abs(np.polyfit(k_hat[:, j], m[:, j], 1)[0] / P.EI - 1.0) for j in range(3))
     assert dev["smoothed"] < 0.02 and dev["smoothed"] < dev["raw"], dev
+
+
+def test_the_moment_prior_leaves_a_linear_rods_reconstruction_as_it_is(sim):
+    """1 mm positions of the paper's linear rod: the pooled law of the bending samples is linear
+    (degree 1 on held-out time blocks), so the prior on the moment is the prior on the curvature
+    and the arrays are those of the curvature prior, bit for bit; the report says why."""
+    P = sim.params
+    meas = _meas(camera_frame(sim.t, sim.q, 1e-3, np.random.default_rng(3)), P)
+    plain, _ = camera.positions_to_state(meas, P, "gp", SETTINGS, seed=1)
+    arr, rep = camera.positions_to_state(meas, P, "gp", SETTINGS, seed=1, moment_prior=True)
+    assert [(r["degree"], r["used"]) for r in rep["moment_prior"]] == [(1, False)]
+    assert plain.keys() == arr.keys() and all(np.array_equal(plain[k], arr[k]) for k in plain)
+
+
+def test_the_moment_prior_and_smoothed_targets_are_refused_together(sim, tmp_path, capsys):
+    """Smoothed moment targets pair the curvature prior's operator with the moments: with the
+    moment prior on, ``crgpr learn`` refuses the pair in one line naming both keys, exit 2,
+    nothing written; the library call raises."""
+    P = sim.params
+    meas = _meas(camera_frame(sim.t, sim.q, 1e-3, np.random.default_rng(3)), P)
+    st_ = camera.LearnSettings(**{**SETTINGS.__dict__, "bending_targets": "smoothed"})
+    with pytest.raises(ValueError, match="camera.learn.moment_prior.passes"):
+        camera.positions_to_state(meas, P, "gp", st_, seed=1, moment_prior=True)
+    path = tmp_path / "cam.parquet"
+    write_parquet(camera_frame(sim.t, sim.q, 1e-3, np.random.default_rng(3)), path)
+    rc = main(["learn", "--measured", str(path), "--out", str(tmp_path / "m"), "--config", str(SMOKE),
+               "--set", "camera.learn.bending_targets=smoothed"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert "camera.learn.bending_targets" in err and "camera.learn.moment_prior.passes" in err, err
+    assert not (tmp_path / "m" / "manifest.json").exists()

@@ -81,7 +81,13 @@ from crgpr.commands.model_dir import (  # noqa: F401  (re-exported: the director
 from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.io import code_version, write_json, write_parquet
-from crgpr.learning.camera import PREFILTERS, LearnSettings, check_node_grid, positions_to_state
+from crgpr.learning.camera import (
+    PREFILTERS,
+    SMOOTHED_WITH_MOMENT_PRIOR,
+    LearnSettings,
+    check_node_grid,
+    positions_to_state,
+)
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.extrapolation import Reach, TangentContinuation, continue_table, law_reach
 from crgpr.learning.features import OBJ_M_FEATURES
@@ -90,11 +96,7 @@ from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choic
 from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import LearnedRod
-from crgpr.learning.nominal import (
-    NOMINAL_LAWS,
-    NominalLaw,
-    segment_curvature_snr,
-)
+from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, segment_curvature_snr
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.record_fit import RecordFit, fit_record, tail_factor
 from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
@@ -197,6 +199,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         raise ConfigError("config: missing section 'camera'")
     cam = cfg["camera"]["learn"]
     st = LearnSettings.from_config(cam)
+    if st.bending_targets == "smoothed" and st.moment_prior.passes > 0 and prefilter_method == "gp":
+        raise ConfigError(SMOOTHED_WITH_MOMENT_PRIOR)
     disc = cfg["discovery"]
     table = read_measured(measured)
     params = model_params(table, cfg)
@@ -206,7 +210,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     seed = int(cfg["seed"]) + 3000
     full = full_state_momenta(table, str(measured), meas.t.size, meas.x.shape[1])
     if full is None:
-        arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed)
+        def add_inputs(a: dict[str, np.ndarray]) -> None:
+            a["G_u"] = port_inputs_per_length(a, params, inputs, ports)
+
+        arr, state_report = positions_to_state(meas, params, prefilter_method, st, seed, moment_prior=True,
+                                               add_inputs=None if inputs is None else add_inputs)
         kind = "positions"
     else:
         check_node_grid(meas, params)

@@ -46,11 +46,14 @@ markers (``measured.kinematics.smooth_kinematics``); the time grid is the camera
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.learning.gradient_models import KAPPA_OPERATOR
+from crgpr.learning.gradient_models import KAPPA_OPERATOR, training_data
+from crgpr.learning.moment_prior import MomentPriorSettings, polynomial_law
+from crgpr.learning.nominal import segment_curvature_snr
 from crgpr.learning.prefilter import fd_time_derivatives, output_indices, spatial_derivatives
 from crgpr.measured.kinematics import Kinematics, angle_kinematics, node_angles, smooth_kinematics
 from crgpr.measured.records import Measured, MeasuredDataError
@@ -58,6 +61,8 @@ from crgpr.physics.params import RodParams
 from crgpr.physics.rod import STATE_NAMES
 
 PREFILTERS: tuple[str, ...] = ("gp", "fd")
+SMOOTHED_WITH_MOMENT_PRIOR = ("camera.learn.bending_targets: smoothed (the curvature prior's operator L) "
+                              "cannot be combined with camera.learn.moment_prior.passes > 0")
 
 
 @dataclass(frozen=True)
@@ -70,12 +75,16 @@ class LearnSettings:
     edge_trim_s: float
     n_t_out: int
     bending_targets: str
+    snr_min: float
+    moment_prior: MomentPriorSettings
 
     @classmethod
     def from_config(cls, c: dict) -> LearnSettings:
         return cls(gp_max_points=int(c["gp_max_points"]), hyper_points=int(c["hyper_points"]),
                    angle_penalty_order=int(c["angle_penalty_order"]), edge_trim_s=float(c["edge_trim_s"]),
-                   n_t_out=int(c["n_t_out"]), bending_targets=str(c["bending_targets"]))
+                   n_t_out=int(c["n_t_out"]), bending_targets=str(c["bending_targets"]),
+                   snr_min=float(c["snr_min"]),
+                   moment_prior=MomentPriorSettings.from_config(c["moment_prior"]))
 
 
 def check_node_grid(meas: Measured, params: RodParams, why: str = "crgpr learn") -> None:
@@ -104,15 +113,18 @@ def fd_kinematics(meas: Measured) -> Kinematics:
     return Kinematics(meas.t, q, v, a, float("nan"), phi[:, 0].copy(), meas.s.copy())
 
 
-def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int) -> Kinematics:
+def gp_kinematics(meas: Measured, params: RodParams, st: LearnSettings, seed: int,
+                  moment_weights: tuple[np.ndarray, float] | None = None) -> Kinematics:
     """The GP prefilter of the positions (noise level fitted on the data), see module docstring.
 
     ``measured.kinematics.smooth_kinematics`` on the model grid, the base clamped: the nodal
     angles are fitted along s with one clamp angle for the record and the difference of order
-    ``camera.learn.angle_penalty_order`` penalised (``kinematics.clamped_angle_fit``).
+    ``camera.learn.angle_penalty_order`` penalised (``kinematics.clamped_angle_fit``), or that
+    difference of a moment profile (``moment_weights``: ``kinematics.weighted_angle_fit``).
     """
     return smooth_kinematics(meas, params, seed=seed, max_points=st.gp_max_points,
-                             hyper_points=st.hyper_points, clamp_order=st.angle_penalty_order)
+                             hyper_points=st.hyper_points, clamp_order=st.angle_penalty_order,
+                             moment_weights=moment_weights)
 
 
 def kinematics(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int) -> Kinematics:
@@ -176,12 +188,34 @@ def state_arrays(kin: Kinematics, params: RodParams, idx: np.ndarray | None = No
     return out
 
 
-def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int
+def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: LearnSettings, seed: int,
+                       moment_prior: bool = False,
+                       add_inputs: Callable[[dict[str, np.ndarray]], None] | None = None
                        ) -> tuple[dict[str, np.ndarray], dict]:
-    """Measured positions -> training arrays and a report (noise level, frames used)."""
+    """Measured positions -> training arrays and a report (noise level, frames used).
+
+    ``moment_prior`` (``crgpr learn``; ``gp`` prefilter): the reconstruction is repeated with the
+    prior on the bending-moment profile (``learning.moment_prior``) for
+    ``camera.learn.moment_prior.passes`` rounds; the report's ``moment_prior`` lists each round's
+    law. ``add_inputs`` puts into the arrays what the moment targets need besides the state
+    (an actuated record's G u, ``commands.learn``).
+    """
     kin = clamp_base(kinematics(meas, params, prefilter, st, seed))
     idx = kept_frames(kin.t, st.edge_trim_s, st.n_t_out)
     arr = state_arrays(kin, params, idx)
+    rounds: list[dict] = []
+    if moment_prior and prefilter == "gp" and st.moment_prior.passes > 0:
+        if st.bending_targets == "smoothed":
+            raise ValueError(SMOOTHED_WITH_MOMENT_PRIOR)
+        for _ in range(st.moment_prior.passes):
+            if add_inputs is not None:
+                add_inputs(arr)
+            weights, entry = _moment_weights(kin, arr, params, st)
+            rounds.append(entry)
+            if weights is None:
+                break
+            kin = clamp_base(gp_kinematics(meas, params, st, seed, weights))
+            arr = state_arrays(kin, params, idx)
     if not all(np.all(np.isfinite(v)) for v in arr.values()):
         raise ValueError(f"{meas.source}: the derived state has non-finite values")
     if st.bending_targets == "smoothed" and kin.kappa_operator is not None:
@@ -192,4 +226,31 @@ def positions_to_state(meas: Measured, params: RodParams, prefilter: str, st: Le
               "edge_trim_s": st.edge_trim_s,
               "kappa_noise_per_segment": None if kin.kappa_noise is None else
               [float(v) if np.isfinite(v) else None for v in kin.kappa_noise]}
+    if rounds:
+        report["moment_prior"] = rounds
     return arr, report
+
+
+def _moment_weights(kin: Kinematics, arr: dict[str, np.ndarray], params: RodParams, st: LearnSettings
+                    ) -> tuple[tuple[np.ndarray, float] | None, dict]:
+    """One round of ``learning.moment_prior``: the pooled law of the bending samples of the
+    segments that resolve their curvature (``snr_min``, as ``crgpr learn`` keeps them) and its
+    secant weights at every frame's rebuilt curvatures; None where the law is linear or its
+    secant is not positive over its covered range (``PolynomialLaw.admissible``)."""
+    X, m = training_data(arr, params, "obj_m", None)
+    n_t = arr["x"].shape[0]
+    keep = np.ones(params.N, dtype=bool)
+    if kin.kappa_noise is not None:
+        keep = segment_curvature_snr(m.reshape(n_t, params.N), params.EI, kin.kappa_noise) >= st.snr_min
+    k = X[:, 0].reshape(n_t, params.N)[:, keep].ravel()
+    law = polynomial_law(k, m.reshape(n_t, params.N)[:, keep].ravel(), st.moment_prior.degree_max,
+                         st.moment_prior.blocks)
+    entry = {"degree": law.degree, "centre": law.centre, "covered": [law.lo, law.hi], "steps": law.steps,
+             "segments": int(keep.sum())}
+    if law.degree == 1 or not law.admissible():
+        entry["used"] = False
+        return None, entry
+    kappa_all = np.diff(kin.q[..., 2], axis=1) / params.ds
+    w = law.relative_secant(kappa_all)
+    entry.update(used=True, secant_min=float(w.min()), secant_max=float(w.max()))
+    return (w, law.centre), entry

@@ -214,6 +214,58 @@ def curvature_operator(S: np.ndarray, W: np.ndarray, ds: float) -> np.ndarray:
     return np.diff(theta, axis=0) / ds
 
 
+def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: int, c: float,
+                       weights: np.ndarray, centre: float, lam: float | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Nodal angles of a clamped rod whose smoothness prior is on a bending-moment profile: per
+    frame t operator S_t and constant g_t, theta_1..N = S_t psi_t + g_t, and lam.
+
+    ``clamped_angle_fit`` penalises the roughness of the curvature along s; the static moment
+    balance makes the bending moment m(s), not the curvature, the smooth profile (m'' = load),
+    and where the law is nonlinear the two differ most where the curvature is largest, at the
+    clamp. Here frame t penalises the ``order - 1``-th difference along s of
+    w_t * (kappa - ``centre``), with w_t (N,) the law's relative secant stiffness about
+    ``centre`` at that frame's curvatures (``weights`` (n_t, N), from a first reconstruction:
+    ``learning.camera``): m(kappa) - m(centre) = secant * (kappa - centre), a constant that
+    differences remove. Uniform weights give ``clamped_angle_fit``'s penalty. theta_0 = ``c``
+    (the clamp angle of that fit); ``lam`` None: by GCV pooled over the frames ``rows`` (the
+    grid and criterion of ``clamped_angle_fit``). Rates take the same S_t (the weights held
+    fixed)."""
+    n_seg = W.shape[1]
+    A = 0.5 * (np.eye(n_seg, n_seg + 1) + np.eye(n_seg, n_seg + 1, 1))
+    B = W @ A
+    b0, B1 = B[:, 0], B[:, 1:]
+    BtB = B1.T @ B1
+    first = np.diff(np.eye(n_seg + 1), 1, axis=0)
+
+    def penalty(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        D = np.diff(w[:, None] * first, order - 1, axis=0)
+        e = np.diff(w * centre, order - 1)  # the penalty is on D theta - e
+        return D[:, 1:], e - D[:, 0] * c
+
+    pens = [penalty(np.asarray(w, float)) for w in weights]
+    scale = np.trace(BtB) / max(float(np.mean([np.trace(D1.T @ D1) for D1, _ in pens])), 1e-300)
+
+    def solve(lam: float, t: int) -> tuple[np.ndarray, np.ndarray]:
+        D1, f = pens[t]
+        M = BtB + lam * D1.T @ D1
+        return np.linalg.solve(M, B1.T), np.linalg.solve(M, lam * D1.T @ f - B1.T @ b0 * c)
+
+    def fit(lam: float) -> tuple[np.ndarray, float]:
+        r, dof = [], 0.0
+        for t in rows:
+            S, g = solve(lam, int(t))
+            r.append(B1 @ (S @ psi[t] + g) + b0 * c - psi[t])
+            dof += W.shape[0] - float(np.trace(B1 @ S))
+        return np.array(r), dof / len(rows)
+
+    if lam is None:
+        best = _gcv_lambda(scale, fit)
+        lam = scale * 1e-8 if best is None else best
+    out = [solve(lam, t) for t in range(psi.shape[0])]
+    return np.stack([o[0] for o in out]), np.stack([o[1] for o in out]), lam
+
+
 def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, max_points: int,
                  hyper_points: int, n_restarts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """GP smoothing of every column of A (NaN = missing) with shared hyperparameters."""
@@ -260,13 +312,17 @@ def _time_smooth(t: np.ndarray, A: np.ndarray, noise_std_min: float, seed: int, 
 
 def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 0.0, seed: int = 0,
                       max_points: int = 1500, hyper_points: int = 120, n_restarts: int = 1,
-                      spatial_fit_times: int = 40, clamp_order: int | None = None) -> Kinematics:
+                      spatial_fit_times: int = 40, clamp_order: int | None = None,
+                      moment_weights: tuple[np.ndarray, float] | None = None) -> Kinematics:
     """q, v, a on the model grid and the measured times (module docstring, steps 1-3).
 
     ``clamp_order``: the base angle is one constant of the record (a rigid clamp); the nodal
     angles are then fitted directly, theta_0 shared by every frame and its rates zero, with
     this difference order penalised (``clamped_angle_fit``), instead of segment angles with
     the ends extrapolated (None: the base may turn, as in the discovery workflow).
+    ``moment_weights`` (clamped only): (weights (n_t, N), centre) of ``weighted_angle_fit``, whose
+    prior on the moment profile then gives the angles and rates; the clamp angle, the curvature
+    noise and the operator L stay those of the curvature prior (``clamped_angle_fit``).
     """
     t = meas.t
     x, vx, ax, nx = _time_smooth(t, meas.x, noise_std_min, seed, max_points, hyper_points, n_restarts)
@@ -291,8 +347,14 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
         kappa_noise = dth_sd / params.ds
         kappa_operator = curvature_operator(S, W, params.ds)
         zero_t = np.zeros((n_t, 1))
-        th = np.c_[zero_t + c, psi @ S.T - c * h]
-        dth, ddth = np.c_[zero_t, dpsi @ S.T], np.c_[zero_t, ddpsi @ S.T]
+        if moment_weights is None:
+            th = np.c_[zero_t + c, psi @ S.T - c * h]
+            dth, ddth = np.c_[zero_t, dpsi @ S.T], np.c_[zero_t, ddpsi @ S.T]
+        else:
+            St, g, _ = weighted_angle_fit(W, psi, rows, clamp_order, c, moment_weights[0], moment_weights[1])
+            th = np.c_[zero_t + c, np.einsum("tjk,tk->tj", St, psi) + g]
+            dth = np.c_[zero_t, np.einsum("tjk,tk->tj", St, dpsi)]
+            ddth = np.c_[zero_t, np.einsum("tjk,tk->tj", St, ddpsi)]
         phi, dphi, ddphi = (0.5 * (f[:, 1:] + f[:, :-1]) for f in (th, dth, ddth))
     else:
         S, _ = spatial_operator(W, psi[rows])
