@@ -215,7 +215,7 @@ def curvature_operator(S: np.ndarray, W: np.ndarray, ds: float) -> np.ndarray:
 
 
 def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: int, c: float,
-                       weights: np.ndarray, centre: float, lam: float | None = None
+                       weights: np.ndarray, centre: float, ds: float, lam: float | None = None
                        ) -> tuple[np.ndarray, np.ndarray, float]:
     """Nodal angles of a clamped rod whose smoothness prior is on a bending-moment profile: per
     frame t operator S_t and constant g_t, theta_1..N = S_t psi_t + g_t, and lam.
@@ -227,7 +227,8 @@ def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: 
     w_t * (kappa - ``centre``), with w_t (N,) the law's relative secant stiffness about
     ``centre`` at that frame's curvatures (``weights`` (n_t, N), from a first reconstruction:
     ``learning.camera``): m(kappa) - m(centre) = secant * (kappa - centre), a constant that
-    differences remove. Uniform weights give ``clamped_angle_fit``'s penalty. theta_0 = ``c``
+    differences remove; ``ds`` the segment length. Uniform weights give ``clamped_angle_fit``'s
+    penalty. theta_0 = ``c``
     (the clamp angle of that fit); ``lam`` None: by GCV pooled over the frames ``rows`` (the
     grid and criterion of ``clamped_angle_fit``). Rates take the same S_t (the weights held
     fixed)."""
@@ -240,7 +241,7 @@ def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: 
 
     def penalty(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         D = np.diff(w[:, None] * first, order - 1, axis=0)
-        e = np.diff(w * centre, order - 1)  # the penalty is on D theta - e
+        e = np.diff(w * centre * ds, order - 1)  # the penalty is on D theta - e (theta differences: kappa ds)
         return D[:, 1:], e - D[:, 0] * c
 
     pens = [penalty(np.asarray(w, float)) for w in weights]
@@ -351,7 +352,8 @@ def smooth_kinematics(meas: Measured, params: RodParams, noise_std_min: float = 
             th = np.c_[zero_t + c, psi @ S.T - c * h]
             dth, ddth = np.c_[zero_t, dpsi @ S.T], np.c_[zero_t, ddpsi @ S.T]
         else:
-            St, g, _ = weighted_angle_fit(W, psi, rows, clamp_order, c, moment_weights[0], moment_weights[1])
+            St, g, _ = weighted_angle_fit(W, psi, rows, clamp_order, c, moment_weights[0], moment_weights[1],
+                                          params.ds)
             th = np.c_[zero_t + c, np.einsum("tjk,tk->tj", St, psi) + g]
             dth = np.c_[zero_t, np.einsum("tjk,tk->tj", St, dpsi)]
             ddth = np.c_[zero_t, np.einsum("tjk,tk->tj", St, ddpsi)]
