@@ -242,6 +242,8 @@ def _moment_weights(kin: Kinematics, arr: dict[str, np.ndarray], params: RodPara
     keep = np.ones(params.N, dtype=bool)
     if kin.kappa_noise is not None:
         keep = segment_curvature_snr(m.reshape(n_t, params.N), params.EI, kin.kappa_noise) >= st.snr_min
+    if keep.sum() < 2:  # too few resolved segments for a law (crgpr learn refuses the record later)
+        return None, {"segments": int(keep.sum()), "used": False}
     k = X[:, 0].reshape(n_t, params.N)[:, keep].ravel()
     law = polynomial_law(k, m.reshape(n_t, params.N)[:, keep].ravel(), st.moment_prior.degree_max,
                          st.moment_prior.blocks)

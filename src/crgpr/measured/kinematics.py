@@ -15,7 +15,8 @@
    S = (W^T W + lam D2^T D2)^-1 W^T, lam by generalised cross-validation pooled over frames,
    applied to psi and its rates alike (so they stay consistent). A rigidly clamped rod
    (``crgpr learn``) instead fits the nodal angles theta_i themselves, theta_0 one clamp angle
-   for the record and its rates zero, with a higher-order penalty (``clamped_angle_fit``).
+   for the record and its rates zero, with a higher-order penalty (``clamped_angle_fit``),
+   or that penalty on a moment profile (``weighted_angle_fit``, an option of ``crgpr learn``).
 3. The rod is rebuilt unstretched and unsheared from the base: nodal angles
    theta_i = (phi_{i-1} + phi_i) / 2 (linear extrapolation at the ends; the fitted theta_i and
    phi_j = (theta_j + theta_{j+1}) / 2 when clamped), positions
@@ -226,12 +227,11 @@ def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: 
     clamp. Here frame t penalises the ``order - 1``-th difference along s of
     w_t * (kappa - ``centre``), with w_t (N,) the law's relative secant stiffness about
     ``centre`` at that frame's curvatures (``weights`` (n_t, N), from a first reconstruction:
-    ``learning.camera``): m(kappa) - m(centre) = secant * (kappa - centre), a constant that
-    differences remove; ``ds`` the segment length. Uniform weights give ``clamped_angle_fit``'s
-    penalty. theta_0 = ``c``
-    (the clamp angle of that fit); ``lam`` None: by GCV pooled over the frames ``rows`` (the
-    grid and criterion of ``clamped_angle_fit``). Rates take the same S_t (the weights held
-    fixed)."""
+    ``learning.camera``): m(kappa) - m(centre) = secant * (kappa - centre), m(centre) a
+    constant that differences remove; ``ds`` the segment length. Uniform weights give
+    ``clamped_angle_fit``'s penalty. theta_0 = ``c`` (the clamp angle of that fit); ``lam``
+    None: by GCV pooled over the frames ``rows`` (the grid and criterion of
+    ``clamped_angle_fit``). Rates take the same S_t (the weights held fixed)."""
     n_seg = W.shape[1]
     A = 0.5 * (np.eye(n_seg, n_seg + 1) + np.eye(n_seg, n_seg + 1, 1))
     B = W @ A
