@@ -12,11 +12,12 @@ edge and too soft next to it. So the reconstruction is repeated with the prior o
 w * (kappa - centre), w the secant stiffness of the law the samples themselves show:
 
 * the law: a polynomial m(kappa) pooled over the segments that resolve the curvature
-  (``camera.learn.snr_min``), its degree raised from 1 while the next degree predicts
-  contiguous held-out time blocks better (``laws.pooled_gain``, the rule of every choice the
-  data decide in ``learning``), up to ``camera.learn.moment_prior.degree_max``. Degree 1 (a
-  linear law, as far as the data tell) leaves the curvature prior, which is then exact: the
-  reconstruction is the same, bit for bit.
+  (``camera.learn.snr_min``), its degree raised from 1 to the next degree, else the one after
+  it, while that predicts contiguous held-out time blocks better (``law_choice.
+  compare_heldout`` on the total errors, the rule of every choice the data decide in
+  ``learning``), up to ``camera.learn.moment_prior.degree_max``. Degree 1 (a linear law, as
+  far as the data tell) leaves the curvature prior, which is then exact: the reconstruction is
+  the same, bit for bit.
 * the weights: the law's secant stiffness about the samples' median curvature, relative to
   its tangent there, at each frame's rebuilt curvatures (clipped to the covered range). A law
   whose secant is not positive over the covered range is not used (reported).
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.learning.laws import heldout_blocks, pooled_gain
+from crgpr.learning.law_choice import compare_heldout, poly_design
 
 
 @dataclass(frozen=True)
@@ -97,37 +98,24 @@ class PolynomialLaw:
 def polynomial_law(kappa: np.ndarray, m: np.ndarray, degree_max: int, blocks: int) -> PolynomialLaw:
     """The pooled law of the module docstring: degree from 1, raised to the next degree (else the
     one after it: an odd law gains nothing from an even term) whose total held-out error over
-    ``blocks`` contiguous blocks of the time-ordered samples is lower by ``pooled_gain``, while
-    one is; ``steps`` records each degree tried (degree, against, log ratio, se, taken)."""
+    ``blocks`` contiguous blocks of the time-ordered samples is lower
+    (``law_choice.compare_heldout``, pooled), while one is; ``steps`` records each degree tried
+    (degree, against, log ratio, se, taken)."""
     kappa = np.asarray(kappa, dtype=float).ravel()
     m = np.asarray(m, dtype=float).ravel()
-    centre, scale = float(np.median(kappa)), float(np.std(kappa)) or 1.0
-    u = (kappa - centre) / scale
-    masks = heldout_blocks(kappa.size, blocks)
-
-    def design(v: np.ndarray, d: int) -> np.ndarray:
-        return np.stack([v**k for k in range(d + 1)], axis=-1)
-
-    def errors(d: int) -> np.ndarray:
-        out = []
-        for test in masks:
-            coef = np.linalg.lstsq(design(u[~test], d), m[~test], rcond=None)[0]
-            out.append(float(np.sum((m[test] - design(u[test], d) @ coef) ** 2)))
-        return np.array(out)
-
-    degree, e, steps = 1, errors(1), []
+    degree, steps = 1, []
     while degree < degree_max:
         taken = False
-        # the next degree, else the one after it: an odd law gains nothing from an even term
         for d in range(degree + 1, min(degree + 2, degree_max) + 1):
-            e_next = errors(d)
-            ratio, se, better = pooled_gain(e, e_next)
-            steps.append({"degree": d, "against": degree, "heldout_log_ratio": ratio,
-                          "heldout_log_ratio_se": se, "taken": bool(better)})
-            if better:
-                degree, e, taken = d, e_next, True
+            c = compare_heldout(m, poly_design(kappa, degree), poly_design(kappa, d), blocks, d, pooled=True)
+            steps.append({"degree": d, "against": degree, "heldout_log_ratio": c.heldout_log_ratio,
+                          "heldout_log_ratio_se": c.heldout_log_ratio_se, "taken": c.richer})
+            if c.richer:
+                degree, taken = d, True
                 break
         if not taken:
             break
-    coef = np.linalg.lstsq(design(u, degree), m, rcond=None)[0]
+    centre, scale = float(np.median(kappa)), float(np.std(kappa)) or 1.0
+    coef = np.linalg.lstsq(np.polynomial.polynomial.polyvander((kappa - centre) / scale, degree), m,
+                           rcond=None)[0]
     return PolynomialLaw(coef, centre, scale, float(kappa.min()), float(kappa.max()), steps)

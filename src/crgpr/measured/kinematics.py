@@ -245,12 +245,12 @@ def weighted_angle_fit(W: np.ndarray, psi: np.ndarray, rows: np.ndarray, order: 
         return D[:, 1:], e - D[:, 0] * c
 
     pens = [penalty(np.asarray(w, float)) for w in weights]
-    scale = np.trace(BtB) / max(float(np.mean([np.trace(D1.T @ D1) for D1, _ in pens])), 1e-300)
+    scale = np.trace(BtB) / max(float(np.mean([np.sum(D1**2) for D1, _ in pens])), 1e-300)
 
     def solve(lam: float, t: int) -> tuple[np.ndarray, np.ndarray]:
         D1, f = pens[t]
-        M = BtB + lam * D1.T @ D1
-        return np.linalg.solve(M, B1.T), np.linalg.solve(M, lam * D1.T @ f - B1.T @ b0 * c)
+        X = np.linalg.solve(BtB + lam * D1.T @ D1, np.c_[B1.T, lam * D1.T @ f - B1.T @ b0 * c])
+        return X[:, :-1], X[:, -1]
 
     def fit(lam: float) -> tuple[np.ndarray, float]:
         r, dof = [], 0.0
