@@ -16,8 +16,10 @@ and worst RMSE(theta) over the study's six test angles, the worst ``ratio_to_nom
 damping's c, whether the record fit kept its warp (and with how many terms), whether it fell
 back to the nominal rod, whether a damped rod's bending law was taken nominal (warped), the
 terms of the profile along the rod it kept (``profile_terms`` of the stiffness factor v(s),
-``rest_terms`` of the rest-curvature shift; 0: none kept or not offered), and the learn wall
-time. ``--keep DIR`` keeps
+``rest_terms`` of the rest-curvature shift; 0: none kept or not offered), the least tangent
+stiffness of the bending law as rolled out over its covered curvatures in units of EI
+(``min_tangent_over_ei``, the manifest's ``bending_tangent``; empty for a nominal law unwarped),
+and the learn wall time. ``--keep DIR`` keeps
 the records and models there. ``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
 value read as YAML) runs a variant of the config; its rows carry the overrides in a column
 ``overrides``, and ``--append`` adds them to an existing ``--csv``.
@@ -88,7 +90,9 @@ def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]
                      "warp_terms": fit.get("warp_terms"), "nominal_fallback": fit.get("nominal_fallback"),
                      "bending_nominal": bool(fit.get("bending_nominal")),
                      "profile_terms": len(fit.get("profile_coefficients") or []),
-                     "rest_terms": len(fit.get("rest_coefficients") or []), "learn_seconds": seconds})
+                     "rest_terms": len(fit.get("rest_coefficients") or []),
+                     "min_tangent_over_ei": (man.get("bending_tangent") or {}).get("min_over_EI"),
+                     "learn_seconds": seconds})
         print(rows[-1], flush=True)
     return rows
 

@@ -11,11 +11,12 @@ from hypothesis import strategies as st
 
 from crgpr.commands.camera import camera_frame
 from crgpr.commands.learn import learn, load_learned
-from crgpr.config import ConfigError, load_config, validate_schema
+from crgpr.config import ConfigError, load_config, rod_params, validate_schema
 from crgpr.gp import load_model
 from crgpr.io import read_parquet, write_parquet
 from crgpr.learning.extrapolation import TangentContinuation
 from crgpr.learning.gradient_models import subset_keeping_extremes
+from crgpr.learning.law_tables import bending_tangent
 from crgpr.learning.laws import rest_state
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import simulate, trajectory_frame
@@ -237,6 +238,21 @@ def test_learned_law_is_written_as_a_table_and_figure_with_its_covered_range(pre
     assert ex["lo"] <= lo and ex["hi"] >= hi and (ex["covered_lo"], ex["covered_hi"]) == (lo, hi)
     assert np.array_equal(m["continued"].to_numpy(), ((m["x"] > ex["hi"]) | (m["x"] < ex["lo"])).to_numpy())
     assert isinstance(load_learned(d / "auto")[0].components["obj_m"], TangentContinuation)
+    # the least tangent stiffness over the covered range: the law of a linear rod, positive
+    tangent = man["bending_tangent"]
+    assert tangent["kappa_range"] == [lo, hi] and 0.5 < tangent["min_over_EI"] < 1.5
+    assert lo <= tangent["at_kappa"] <= hi
+
+
+def test_the_least_tangent_stiffness_of_a_bending_law_is_found_where_a_warp_bends_it_down(tmp_path):
+    """The nominal law EI kappa times the warp w = 1 - 0.9 u^4, u = kappa / 20 1/m: its tangent
+    EI (1 - 4.5 u^4) is negative beyond |u| = 0.69 and least at the covered edges, -3.5 EI; the
+    nominal law unwarped has EI everywhere."""
+    P = replace(rod_params(load_config(SMOKE)), kappa0=0.0)
+    warp = (0.0, 20.0, np.array([0.0, 0.0, -0.9]), np.zeros(0), np.zeros(0))
+    t = bending_tangent(tmp_path, [], P, -20.0, 20.0, 401, warp)
+    assert -3.5 < t["min_over_EI"] < -3.3 and abs(abs(t["at_kappa"]) - 20.0) < 0.2, t
+    assert np.isclose(bending_tangent(tmp_path, [], P, -20.0, 20.0, 401)["min_over_EI"], 1.0)
 
 
 def test_posterior_sd_of_a_learned_law_grows_beyond_its_covered_range(precurved_models):

@@ -372,6 +372,38 @@ def test_a_learned_law_that_forecasts_its_record_worse_than_the_nominal_rod_fall
     assert not unchecked.nominal_fallback and math.isnan(unchecked.nominal_log_ratio)  # no nominal rod given
 
 
+def test_a_warp_whose_refit_reverses_the_law_is_kept_as_chosen_or_the_law_as_learned_is_checked_again(
+        smoke, monkeypatch):
+    """The rod is 8 % stiffer than the nominal one, the learned law 20 % softer than the rod: the
+    warp (about +25 %) forecasts the held-out blocks better and beats the nominal rod. Where its
+    refit on the whole record reverses the law (``warp.admissible`` false for it, made so here),
+    the warp as the held-out blocks chose it, fitted on the record's first part, is kept; where
+    that too reverses it, no warp is kept and the law as learned, which follows the record worse
+    than the nominal rod, is compared with the nominal rod again: every law nominal."""
+    import crgpr.learning.record_fit as record_fit
+
+    P, sim, rf = smoke
+    arr = _record(P, np.array([0.08]), 20.0, 1e-4, seed=1)
+    soft = _nominal_rod(P, np.array([1.08 * 0.8 - 1.0]), 20.0)
+
+    def soft_rod(W, c):
+        return LearnedRod({**soft.components, "obj_m": BendingWarp(soft.components["obj_m"], 0.0, 20.0, W)},
+                          "objective", P, None, c)
+    calls = []
+
+    def refit_reverses(c):  # the first check (the whole-record refit) fails, later ones pass
+        calls.append(1)
+        return np.full(np.atleast_2d(c).shape[0], len(calls) > 1)
+    monkeypatch.setattr(record_fit, "admissible", refit_reverses)
+    fit = fit_record(soft_rod, arr, P, sim, 0.0, 20.0, rf, nominal_rod=_nominal_rod(P, None, 20.0))
+    assert fit.kept and not fit.nominal_fallback and "first part" in fit.note, fit
+    assert abs(fit.coefficients[0] - 0.25) < 0.03 and np.isfinite(fit.coefficient_cov).all(), fit
+    monkeypatch.setattr(record_fit, "admissible", lambda c: np.zeros(np.atleast_2d(c).shape[0], dtype=bool))
+    fit = fit_record(soft_rod, arr, P, sim, 0.0, 20.0, rf, nominal_rod=_nominal_rod(P, None, 20.0))
+    assert not fit.kept and fit.nominal_fallback and "every law nominal" in fit.note, fit
+    assert fit.rmse_nominal < fit.rmse_compared == fit.rmse_start_only
+
+
 def test_a_damped_rod_with_a_misshapen_learned_law_takes_its_nominal_bending_law_warped(smoke):
     """A damped rod whose law is the nominal one 8 % stiffer; the learned law is wrong in shape
     (w = 1 + 0.8 u^4, as a law regressed on moment targets that still hold part of the damping can

@@ -57,8 +57,8 @@ taken where it follows the record better (``record_fit.bending_nominal``; ``obj_
 from __future__ import annotations
 
 import copy
-import json
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -68,6 +68,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crgpr.commands.learn_laws import bending_reach, law_outputs
 from crgpr.commands.model_dir import (  # noqa: F401  (re-exported: the directory's readers)
     FEATURES,
     MANIFEST,
@@ -80,7 +81,7 @@ from crgpr.commands.model_dir import (  # noqa: F401  (re-exported: the director
 )
 from crgpr.config import ConfigError, add_config_options, cli_config, rod_params
 from crgpr.gp.evaluators import load_evaluator
-from crgpr.io import code_version, write_json, write_parquet
+from crgpr.io import code_version, write_json
 from crgpr.learning.camera import (
     PREFILTERS,
     SMOOTHED_WITH_MOMENT_PRIOR,
@@ -89,17 +90,16 @@ from crgpr.learning.camera import (
     positions_to_state,
 )
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
-from crgpr.learning.extrapolation import Reach, TangentContinuation, continue_table, law_reach
+from crgpr.learning.extrapolation import Reach, TangentContinuation
 from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choice
-from crgpr.learning.law_tables import covered_ranges, law_tables
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import LearnedRod
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, segment_curvature_snr
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.record_fit import RecordFit, fit_record, tail_factor
-from crgpr.learning.warp import BendingWarp, Warp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
+from crgpr.learning.warp import BendingWarp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import Ports, ports_from_config
@@ -107,7 +107,6 @@ from crgpr.physics.rod import node_weights
 from crgpr.physics.signals import Inputs, read_inputs
 from crgpr.physics.simulate import Trajectory
 
-LAW_TABLE, LAW_FIGURE = "laws.parquet", "laws.png"
 MOMENTUM_COLUMNS = ("p_x", "p_y", "p_theta")
 
 
@@ -428,47 +427,6 @@ def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: Ro
                                     record_every=int(sim["record_every"]), scheme=str(sim["scheme"])), params)
 
 
-def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict[str, Any], seed: int,
-                warp: Warp | None = None, warp_cov: np.ndarray | None = None,
-                extrapolation: dict[str, Any] | None = None, center: float | None = None,
-                reach: Reach | None = None, warp_truncation: np.ndarray | None = None,
-                choice: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The learned laws shown: ``laws.parquet`` (``learning.law_tables``) and ``laws.png``
-    (``report.laws``) in the model directory, the bending law times its record-fit ``warp``
-    where it has one (``warp_cov``, ``warp_truncation``: its band), continued beyond its reach
-    (``learning.extrapolation``,
-    ``extrapolation`` = config ``camera.learn.extrapolation``, ``center`` the law's rest curvature;
-    ``reach``: the one the record fit used, else found on the table written here; ``choice``: a
-    nominal bending law's ``law_choice`` entry, ``nominal_choice``); returns the
-    manifest's entries (the covered range of every learned model's inputs, the bending law's
-    reach, the file names)."""
-    from crgpr.report.laws import law_figure
-
-    cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
-           for m in trained}
-    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov, warp_truncation, choice)
-    if reach is None and "obj_m" in trained and extrapolation is not None:
-        reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]), center)
-    entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict()}
-    if tab.empty:
-        return {**entries, "law_table": None, "law_figure": None}
-    tab = continue_table(tab, reach)
-    write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
-                                         "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale, "
-                                         "continued (SI units)"})
-    law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
-    return {**entries, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
-
-
-def bending_reach(out: Path, params: RodParams, cam: dict[str, Any], seed: int, center: float | None
-                  ) -> Reach | None:
-    """The ``Reach`` of the bending law just written to ``out`` as learned (before any record fit:
-    its own band; ``cam``: config ``camera.learn``, its ``law_table`` and ``extrapolation``)."""
-    ext = cam["extrapolation"]
-    tab = law_tables(out, ["obj_m"], params, cam["law_table"], seed)
-    return law_reach(tab, float(ext["band"]), float(ext["tangent_span"]), center)
-
-
 def checked_step(st: SimSettings, params: RodParams) -> SimSettings:
     """``st`` if its step is stable for the model's rod, else a one-line ConfigError."""
     if st.dt >= params.dt_stable():
@@ -502,6 +460,11 @@ def _cli(args: Any) -> None:
     print(f"learned {man['features']} models ({man['prefilter']} prefilter, {man['input']} input, "
           f"N = {man['rod']['N']}" + (f", noise {noise * 1e3:.3g} mm" if noise else "") +
           f") in {man['seconds']:.1f} s; written to {args.out}")
+    tangent = man.get("bending_tangent")
+    if tangent and tangent["min_over_EI"] < 0:  # a passive elastic law is monotone (docs/learned-laws.md)
+        print(f"warning: the bending law's tangent stiffness is negative inside its covered range "
+              f"({tangent['min_over_EI']:.3g} EI at kappa = {tangent['at_kappa']:.3g} 1/m, segment "
+              f"{tangent['segment']}; manifest bending_tangent)", file=sys.stderr)
 
 
 __all__ = ["learn", "load_learned", "learned_components", "learned_damping", "learned_models",

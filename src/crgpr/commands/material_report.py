@@ -11,7 +11,7 @@ from typing import Any
 
 import pandas as pd
 
-from crgpr.commands.learn import LAW_TABLE
+from crgpr.commands.learn_laws import LAW_TABLE
 from crgpr.commands.materials import COLUMNS, INPUTS
 from crgpr.config import material_case_rod, rod_params
 from crgpr.io import read_parquet, write_csv

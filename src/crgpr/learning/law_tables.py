@@ -186,11 +186,13 @@ def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, set
 def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: RodParams, kappa: np.ndarray,
                             max_points: int, seed: int, band_blocks: int, warp: Warp | None = None,
                             warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None,
-                            choice: dict[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                            choice: dict[str, Any] | None = None, with_sd: bool = True
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
-    each (n, N). A learned ``obj_m``: its rollout evaluator's mean and the sd of ``law_table``
-    (inputs other than kappa and s at their training medians); a nominal one (not in
+    each (n, N) (``with_sd`` False: the mean alone, sd 0). A learned ``obj_m``: its rollout
+    evaluator's mean and the sd of ``law_table`` (inputs other than kappa and s at their training
+    medians); a nominal one (not in
     ``trained``): EI (kappa - kappa0) of ``params`` with the sd of its richer stand-in's departure
     where the data chose it (``choice``: its ``law_choice`` entry; else 0). Either times the
     record-fit ``warp`` where the model has one (``learning.record_fit``)."""
@@ -206,7 +208,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         med = np.median(np.asarray(f["X"], dtype=float), axis=0)
-    sd_gp, _ = _sd_model(stem, max_points, seed, band_blocks)
+    sd_gp = _sd_model(stem, max_points, seed, band_blocks)[0] if with_sd else None
     s, s_rel = segment_arclength(N, params.ds), segment_positions(N)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
     at = np.empty((kappa.size, N))  # the curvature each segment's law is evaluated at (the warp's rest shift)
@@ -219,8 +221,26 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
                 X[:, i] = shifted_kappa(X[:, i], s_rel[j:j + 1], warp)
         at[:, j] = X[:, features.index("kappa")]
         mean[:, j] = _mean(stem, X)
-        sd[:, j] = np.sqrt(np.asarray(sd_gp.predict(X, return_var=True)[1], dtype=float).ravel())
+        sd[:, j] = 0.0 if sd_gp is None else np.sqrt(np.asarray(sd_gp.predict(X, return_var=True)[1],
+                                                                 dtype=float).ravel())
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
     return _warped(mean, sd, at, warp, warp_cov, s_rel, truncation)
+
+
+def bending_tangent(model_dir: str | Path, trained: list[str], params: RodParams, lo: float, hi: float,
+                    n_grid: int, warp: Warp | None = None) -> dict[str, Any]:
+    """The least tangent stiffness dm/dkappa of a ``crgpr learn`` directory's bending law as its
+    rollouts integrate it inside [lo, hi] (learned or nominal, times its record-fit ``warp``; every
+    segment at its own s, ``bending_law_at_segments``), by differences on ``n_grid`` points:
+    ``min_over_EI`` (in units of the nominal EI), ``at_kappa`` [1/m] and ``segment`` where it is,
+    ``kappa_range``. A passive elastic rod's stored energy is convex in its curvature (eq. (10)),
+    its tangent stiffness positive; a negative one lets a segment snap between two curvatures
+    under one moment."""
+    g = np.linspace(float(lo), float(hi), int(n_grid))
+    m = bending_law_at_segments(model_dir, trained, params, g, 0, 0, 0, warp, with_sd=False)[0]
+    d = np.diff(m, axis=0) / np.diff(g)[:, None]
+    i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+    return {"min_over_EI": float(d[i, j] / params.EI), "at_kappa": float(0.5 * (g[i] + g[i + 1])),
+            "segment": int(j), "kappa_range": [float(lo), float(hi)]}

@@ -448,17 +448,27 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     on_law = k and not bending.get("bending_nominal")  # the learned law's warp: its tail too
     free = (np.arange(n_a) < w0 + k) | along | (at_tail if on_law else False)
     a, rms = levenberg_marquardt(full_pick, a_pick, free, *lm, last)
-    if not admissible(a[2 * J + nd:2 * J + nd + k])[0]:  # reversed where few samples constrain it
-        bending["bending_nominal"] = False
-        return replace(result(0, a_start, start_only, start_only, ratio, se,
-                              "the fitted warp reverses the law within the covered range (w <= 0): "
-                              "not kept"), **nominal)
+    refit = ""
+    if not admissible(a[w0:w0 + k])[0]:  # reversed where few samples constrain it
+        if not admissible(a_pick[w0:w0 + k])[0]:  # so is the pick: the law as learned, checked again
+            bending["bending_nominal"] = False
+            floor = {} if nominal_rod is None else _against_nominal(
+                nominal_rod, res[0], a_start, arr, params, settings, J, n_fit, n_t, exact_start, inputs,
+                ports, lm, blocks)
+            why = ("; the nominal rod forecasts or reproduces the record better than the law as learned: "
+                   "every law nominal" if floor.get("nominal_fallback") else "")
+            return replace(result(0, a_start, start_only, start_only, ratio, se, "the fitted warp reverses "
+                                  f"the law within the covered range (w <= 0): not kept{why}"), **floor)
+        last.clear()  # the pick as the held-out blocks chose it, fitted on the record's first part
+        a, rms = levenberg_marquardt(full_pick, a_pick, free, 0, 0.0, last)
+        refit = ("; refitted on the whole record it reverses the law (w <= 0): kept as fitted on the "
+                 "record's first part")
     which = "the nominal bending law" if bending.get("bending_nominal") else "the learned law"
     parts = [f"{int(along[b].sum())} {name} terms" for name, b in blocks_along.items() if along[b].any()]
     on_s = f" and a profile along s: {', '.join(parts)}" if parts else ""
     tail_log = float(np.clip(a[-1], -TAIL_LOG_BOUND, TAIL_LOG_BOUND)) if free[at_tail].any() else 0.0
     kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms{on_s}, on {which}): forecasts "
-                          "the held-out blocks consistently better", frame, along), **nominal,
+                          f"the held-out blocks consistently better{refit}", frame, along), **nominal,
                    **(trunc if k else {}), tail_log_factor=tail_log)
     n_w, n_tail = k + int(along.sum()), int(free[at_tail].sum())
     cov = (warp_covariance(last["r"], last["J"], n_t, n_w + n_tail)[:n_w, :n_w] if "J" in last
