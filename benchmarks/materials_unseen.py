@@ -22,7 +22,10 @@ stiffness of the bending law as rolled out over its covered curvatures in units 
 and the learn wall time. ``--keep DIR`` keeps
 the records and models there. ``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
 value read as YAML) runs a variant of the config; its rows carry the overrides in a column
-``overrides``, and ``--append`` adds them to an existing ``--csv``.
+``overrides``, and ``--append`` adds them to an existing ``--csv``. ``--case NAME MATERIAL
+THETA0`` (repeatable) runs a rod of your own through the same rules: ``MATERIAL`` a
+``rod.material`` overlay as YAML or JSON, ``THETA0`` the training release angle [deg]; without
+``--cases`` only those run.
 """
 
 from __future__ import annotations
@@ -115,20 +118,45 @@ def overridden(cfg: dict[str, Any], sets: list[str]) -> tuple[dict[str, Any], di
     return c, done
 
 
+def extra_case(name: str, material: str, theta0: str) -> tuple[dict[str, Any], float]:
+    """A ``--case``'s (material overlay, release angle); a malformed one exits with one line
+    (exit code 2)."""
+    try:
+        overlay, angle = yaml.safe_load(material), float(theta0)
+    except (yaml.YAMLError, ValueError) as exc:
+        print(f"materials_unseen.py: --case {name}: {exc}".splitlines()[0], file=sys.stderr)
+        sys.exit(2)
+    if not isinstance(overlay, dict):
+        print(f"materials_unseen.py: --case {name}: MATERIAL must be a mapping of rod.material keys",
+              file=sys.stderr)
+        sys.exit(2)
+    return overlay, angle
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--cases", default=None, help="comma-separated names of the cases above")
+    ap.add_argument("--case", nargs=3, action="append", default=[], metavar=("NAME", "MATERIAL", "THETA0"),
+                    help="another case: its rod.material overlay (YAML or JSON) and release angle [deg]")
     ap.add_argument("--config", default="config.yaml")
     ap.add_argument("--csv", default="benchmarks/materials_unseen.csv")
     ap.add_argument("--keep", default=None, help="directory to keep the records and models in")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     ap.add_argument("--append", action="store_true", help="add the rows to an existing --csv")
     args = ap.parse_args()
+    for name, material, theta0 in args.case:
+        CASES[name] = extra_case(name, material, theta0)
+    names = args.cases.split(",") if args.cases else [c[0] for c in args.case] or list(CASES)
+    unknown = [c for c in names if c not in CASES]
+    if unknown:
+        print(f"materials_unseen.py: --cases: unknown case(s) {unknown}; known: {list(CASES)}",
+              file=sys.stderr)
+        sys.exit(2)
     cfg, sets = overridden(load_config(args.config), args.set)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
-        for case in args.cases.split(","):
+        for case in names:
             rows += run_case(cfg, case, root)
     out = pd.DataFrame(rows)
     if sets:

@@ -17,7 +17,9 @@ Parameters (``RecordFit``):
   in u, so the law keeps its symmetry about c; multiplicative, so m(c) = 0 is kept; constant
   beyond the covered range, where the record says nothing of it (``BendingWarp``); kept only
   where w > 0 on the covered range (``warp.admissible``: the law keeps its sign where few
-  samples constrain the warp);
+  samples constrain the warp): the warp refitted on the whole record, else the warp as chosen
+  on the record's first part, else none (the law as learned then compared with the nominal rod
+  again);
 * where the bending law learned from positions takes s as an input
   (``learning.law_choice.bending_arclength``), a profile along the rod: a stiffness factor
   v(s) = exp(sum_{j = 1..S} b_j P_j(2 s/L - 1)) (``warp.profile_factor``), positive for any b,
