@@ -144,6 +144,21 @@ def test_a_graded_rod_takes_arclength_as_an_input():
     assert c.richer and c.heldout_mse_richer < 0.5 * c.heldout_mse_simple, c
 
 
+def test_a_stiff_section_away_from_the_clamp_is_not_the_nominal_law():
+    """EI 1.8 times the nominal over s/L0 0.55-0.75, where the curvatures are small: a stand-in
+    uniform along the rod gains little on the nominal law; one in (kappa, s) predicts the
+    held-out blocks consistently better (``grey_box`` then learns m, with s as an input). On the
+    nominal rod's record neither does."""
+    def law(k, s):
+        return EI * k * (1.0 + 0.8 * ((s >= 0.55 * L0) & (s <= 0.75 * L0)))
+    kappa, s, m = _bending_record(law)
+    uniform = learned_or_nominal(kappa[:, None], m, EI * kappa, 3, 10, pooled=True)
+    along = learned_or_nominal(np.c_[kappa, s], m, EI * kappa, 3, 10, pooled=True)
+    assert along.richer and along.heldout_log_ratio > uniform.heldout_log_ratio + 0.5, (uniform, along)
+    kappa, s, m = _bending_record(lambda k, s: EI * k, noise=2e-4)
+    assert not learned_or_nominal(np.c_[kappa, s], m, EI * kappa, 3, 10, pooled=True).richer
+
+
 def test_schema_rejects_an_unknown_arclength_setting():
     cfg = copy.deepcopy(load_config(SMOKE))
     cfg["camera"]["learn"]["bending_arclength"] = "sometimes"
@@ -212,6 +227,8 @@ def test_linear_rod_keeps_the_nominal_laws_and_no_arclength(graded_and_linear):
         assert k in man["nominal_laws"] and not ch[k]["richer"], ch[k]
         assert isinstance(model.components[comp], NominalLaw)
     assert all((k in man["nominal_laws"]) == (not c["richer"]) for k, c in ch.items())
+    # m kept nominal by the uniform stand-in is offered a stand-in varying along s too, kept too
+    assert ch["m"]["decided_by"] == "uniform" and not ch["m"]["along_s"]["richer"]
 
 
 def test_a_nominal_momentum_map_is_p_over_the_mass_per_length():

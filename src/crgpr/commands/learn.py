@@ -282,7 +282,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                              f"segment(s) (SNR >= camera.learn.snr_min = {cam['snr_min']}); "
                              "too noisy to learn a bending law")
     along_s = bending_arclength(arr, params, cam, masks.get("obj_m"),
-                                features == "objective" and "obj_m" in trained and m_cols is not None)
+                                features == "objective" and "obj_m" in trained and m_cols is not None,
+                                ((grey["law_choice"] or {}).get("m") or {}).get("decided_by") == "along_s")
     rest = None
     if sym == "auto" and features == "objective" and "obj_m" in trained:
         # the rest curvature and the symmetry from the data (learning/laws.py), on the law's own samples;

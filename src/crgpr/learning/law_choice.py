@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.learning.features import segment_arclength
+from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import inner_segments, training_data
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio, pooled_gain
 from crgpr.learning.nominal import (
@@ -200,13 +200,16 @@ def arclength_dependence(kappa: np.ndarray, s: np.ndarray, m: np.ndarray, degree
 
 
 def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[str, Any],
-                      segments: np.ndarray | None, applicable: bool) -> dict[str, Any]:
+                      segments: np.ndarray | None, applicable: bool, shown: bool = False) -> dict[str, Any]:
     """Whether the learned bending law m takes the arclength s as an input (manifest
     ``bending_arclength``): ``camera.learn.bending_arclength`` always / never, or with auto where
     the law's samples vary along the rod by the held-out time blocks
     (``arclength_dependence``: a regression spline in kappa against the same spline
     with coefficients polynomial in s). Only for the local law m(kappa) (``bending_inputs`` a
-    subset without all five inputs) of a learned obj_m."""
+    subset without all five inputs) of a learned obj_m. ``shown``: the law was learned because a
+    stand-in varying along the rod predicted the held-out blocks better than the nominal law
+    (``grey_box``, ``law_choice.m.decided_by``): the data have shown it varies along s, and with
+    auto it takes s."""
     setting = str(cam["bending_arclength"])
     if not applicable:
         return {"setting": setting, "used": False, "choice": None}
@@ -217,8 +220,14 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
         S = (S if segments is None else S[:, segments]).reshape(-1)
         choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
                                       int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
-    used = setting == "always" or (choice is not None and choice["richer"])
-    return {"setting": setting, "used": bool(used), "choice": choice}
+    used = setting == "always" or (setting == "auto" and (shown or (choice is not None and choice["richer"])))
+    return {"setting": setting, "used": bool(used), "choice": choice, "from_law_choice": bool(shown)}
+
+
+def _may_take_s(cam: dict[str, Any]) -> bool:
+    """Whether the bending law may take the arclength s as an input: the local law (``bending_inputs``
+    not all five inputs) and ``bending_arclength`` not ``never``."""
+    return str(cam["bending_arclength"]) != "never" and list(cam["bending_inputs"]) != list(OBJ_M_FEATURES)
 
 
 def nominal_choice(man: dict[str, Any]) -> dict[str, Any] | None:
@@ -254,6 +263,16 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
             Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
             heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
                                             int(cam["choice_blocks"]), pooled=k == "m").to_dict()
+        if not heldout["m"]["richer"] and _may_take_s(cam):
+            # the nominal law is uniform along the rod: one that varies along it (a local defect
+            # away from the clamp, whose curvatures a uniform stand-in averages away) is not it either
+            X, y = training_data(arr, params, "obj_m", None, inner_segments(params.N, trim))
+            s = np.tile(segment_arclength(params.N, params.ds)[inner_segments(params.N, trim)],
+                        X.shape[0] // int(inner_segments(params.N, trim).sum()))
+            along = learned_or_nominal(np.c_[X[:, 0], s], y, params.EI * (X[:, 0] - params.kappa0),
+                                       int(cam["choice_degree"]), int(cam["choice_blocks"]), pooled=True)
+            heldout["m"] = {**heldout["m"], "along_s": along.to_dict(), "richer": bool(along.richer),
+                            "decided_by": "along_s" if along.richer else "uniform"}
         for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
             X, y = training_data(arr, params, NOMINAL_LAWS[k], None)
             heldout[k] = learned_or_nominal(X, y, NominalLaw(k, params)(X[:, 0]), int(cam["choice_degree"]),
