@@ -61,7 +61,6 @@ def bending_reach(out: Path, params: RodParams, cam: dict[str, Any], seed: int, 
     return law_reach(tab, float(ext["band"]), float(ext["tangent_span"]), center)
 
 
-
 def _tangent(out: Path, trained: list[str], params: RodParams, warp: Warp | None,
              cov: dict[str, dict[str, list[float]]], n_grid: int) -> dict[str, Any] | None:
     """``law_tables.bending_tangent`` over the bending law's covered curvatures (a learned law's

@@ -216,12 +216,18 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
     choice = None
     if setting == "auto":
         X, m = training_data(arr, params, "obj_m", None, segments)
-        S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
-        S = (S if segments is None else S[:, segments]).reshape(-1)
+        S = sample_arclength(params, segments, arr["x"].shape[0])
         choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
                                       int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
     used = setting == "always" or (setting == "auto" and (shown or (choice is not None and choice["richer"])))
     return {"setting": setting, "used": bool(used), "choice": choice, "from_law_choice": bool(shown)}
+
+
+def sample_arclength(params: RodParams, segments: np.ndarray | None, n_t: int) -> np.ndarray:
+    """The arclength s of every sample of a segment law (``training_data``'s rows: time-major over
+    the ``segments`` kept, all where None) of a record of ``n_t`` frames."""
+    s = segment_arclength(params.N, params.ds)
+    return np.tile(s if segments is None else s[segments], n_t)
 
 
 def _may_take_s(cam: dict[str, Any]) -> bool:
@@ -257,20 +263,22 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
     heldout = None
     if setting == "auto" and features == "objective":
         heldout = {}
+        inner = inner_segments(params.N, trim)
         for k, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
                                      "m": (0, params.EI, params.kappa0)}.items():
-            X, y = training_data(arr, params, f"obj_{k}", None, inner_segments(params.N, trim))
+            X, y = training_data(arr, params, f"obj_{k}", None, inner)
             Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
-            heldout[k] = learned_or_nominal(Xl, y, stiff * (X[:, col] - ref), int(cam["choice_degree"]),
+            nominal = stiff * (X[:, col] - ref)
+            heldout[k] = learned_or_nominal(Xl, y, nominal, int(cam["choice_degree"]),
                                             int(cam["choice_blocks"]), pooled=k == "m").to_dict()
+            if k == "m":
+                kappa_m, y_m, nominal_m = X[:, 0], y, nominal
         if not heldout["m"]["richer"] and _may_take_s(cam):
             # the nominal law is uniform along the rod: one that varies along it (a local defect
             # away from the clamp, whose curvatures a uniform stand-in averages away) is not it either
-            X, y = training_data(arr, params, "obj_m", None, inner_segments(params.N, trim))
-            s = np.tile(segment_arclength(params.N, params.ds)[inner_segments(params.N, trim)],
-                        X.shape[0] // int(inner_segments(params.N, trim).sum()))
-            along = learned_or_nominal(np.c_[X[:, 0], s], y, params.EI * (X[:, 0] - params.kappa0),
-                                       int(cam["choice_degree"]), int(cam["choice_blocks"]), pooled=True)
+            s = sample_arclength(params, inner, arr["x"].shape[0])
+            along = learned_or_nominal(np.c_[kappa_m, s], y_m, nominal_m, int(cam["choice_degree"]),
+                                       int(cam["choice_blocks"]), pooled=True)
             heldout["m"] = {**heldout["m"], "along_s": along.to_dict(), "richer": bool(along.richer),
                             "decided_by": "along_s" if along.richer else "uniform"}
         for k in MOMENTUM_LAWS:  # the velocity maps H_p(p): nominal p / (rho A), p / (rho I)
