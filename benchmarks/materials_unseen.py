@@ -25,7 +25,13 @@ value read as YAML) runs a variant of the config; its rows carry the overrides i
 ``overrides``, and ``--append`` adds them to an existing ``--csv``. ``--case NAME MATERIAL
 THETA0`` (repeatable) runs a rod of your own through the same rules: ``MATERIAL`` a
 ``rod.material`` overlay as YAML or JSON, ``THETA0`` the training release angle [deg]; without
-``--cases`` only those run.
+``--cases`` only those run. ``--truth-refine K`` (K > 1) makes the records with another
+discretisation than the model's: the true rod with K N segments and a K^2 times shorter step
+(the same record interval); the camera sees all K N + 1 nodes (markers at s = i L0 / (K N), an
+``s`` column: the model keeps the config's N), the full-state record and the test records keep
+every K-th node (the model's grid); rows carry ``truth_refine`` and ``grid_floor_rmse_theta``, the
+mean RMSE(theta) at the test angles of the true rod on the model's grid (the true law, no
+learning) against the finer one: the discretisation's share of every model's error.
 """
 
 from __future__ import annotations
@@ -39,11 +45,22 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import yaml
 
-from crgpr.commands.materials import material_data, material_learn, material_score
-from crgpr.config import load_config
+from crgpr.commands.camera import camera_frame
+from crgpr.commands.materials import (
+    camera_seed,
+    material_data,
+    material_learn,
+    material_score,
+    study_settings,
+)
+from crgpr.config import load_config, material_case_rod
+from crgpr.io import write_parquet
+from crgpr.physics.params import SimSettings
+from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame
 
 # case -> (rod.material overlay of the true rod, release angle of the training record [deg])
 CASES: dict[str, tuple[dict[str, Any], float]] = {
@@ -60,15 +77,58 @@ CASES: dict[str, tuple[dict[str, Any], float]] = {
 }
 
 
-def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]:
-    """The study's rules on one case in ``root``: its records, then both inputs learned and scored."""
+def _fine(cfg: dict[str, Any], case: str, theta0: float, t_end: float, refine: int) -> Trajectory:
+    """The true rod of ``case`` with ``refine`` times more segments, released at ``theta0``."""
+    st = study_settings(cfg, t_end)
+    fine = material_case_rod(cfg, case)
+    fine = fine.replace(N=fine.N * refine)
+    return simulate(theta0, fine, SimSettings(dt=st.dt / refine**2, t_end=st.t_end,
+                                              record_every=st.record_every * refine**2, scheme=st.scheme))
+
+
+def _coarse(tr: Trajectory, refine: int) -> Trajectory:
+    """Every ``refine``-th node of a fine trajectory: the model's grid (momenta per length)."""
+    params = tr.params.replace(N=tr.params.N // refine)
+    return Trajectory(tr.theta0_deg, tr.t, tr.q[:, ::refine], tr.p[:, ::refine], params)
+
+
+def refined_data(cfg: dict[str, Any], case: str, refine: int, d: Path) -> float:
+    """``material_data``'s three records from a ``refine`` times finer true rod, and the grid's
+    floor (module docstring)."""
+    ms = cfg["materials_study"]
+    tr = _fine(cfg, case, float(ms["theta0_deg"]), float(ms["t_end_s"]), refine)
+    every = int(round(1.0 / (float(ms["camera_rate_hz"]) * float(np.median(np.diff(tr.t))))))
+    meta = {"kind": "material_record", "case": case, "truth_refine": refine}
+    cam = camera_frame(tr.t[::every], tr.q[::every], float(ms["camera_noise_m"]),
+                       camera_seed(int(cfg["seed"]), case))
+    cam.insert(1, "s", cam.pop("node") * tr.params.ds)  # markers at arc lengths: the config's N
+    write_parquet(cam, str(d / "camera.parquet"),
+                  {**meta, "kind": "measured", "noise_std_m": float(ms["camera_noise_m"])})
+    write_parquet(trajectory_frame(_coarse(tr, refine)).drop(columns=["theta0_deg", "s"]),
+                  str(d / "train.parquet"), meta)
+    st = study_settings(cfg, float(ms["rollout_t_end_s"]))
+    tests = [_coarse(_fine(cfg, case, float(a), st.t_end, refine), refine) for a in ms["test_deg"]]
+    write_parquet(pd.concat([trajectory_frame(t) for t in tests], ignore_index=True), str(d / "test.parquet"),
+                  meta)
+    floor = [np.sqrt(np.mean((simulate(t.theta0_deg, material_case_rod(cfg, case), st).q[:, 1:, 2]
+                              - t.q[:, 1:, 2])**2)) for t in tests]
+    return float(np.mean(floor))
+
+
+def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1) -> list[dict[str, Any]]:
+    """The study's rules on one case in ``root``: its records (from a ``refine`` times finer true
+    rod where > 1), then both inputs learned and scored."""
     material, theta0 = CASES[case]
     c = copy.deepcopy(cfg)
     c["materials_study"]["cases"][case] = material
     c["materials_study"]["theta0_deg"] = theta0
     d = root / case
     d.mkdir(parents=True, exist_ok=True)
-    material_data(c, case, str(d / "train.parquet"), str(d / "camera.parquet"), str(d / "test.parquet"))
+    extra = {}
+    if refine > 1:
+        extra = {"truth_refine": refine, "grid_floor_rmse_theta": refined_data(c, case, refine, d)}
+    else:
+        material_data(c, case, str(d / "train.parquet"), str(d / "camera.parquet"), str(d / "test.parquet"))
     rows = []
     for source in ("full_state", "camera"):
         t0 = time.perf_counter()
@@ -95,7 +155,7 @@ def run_case(cfg: dict[str, Any], case: str, root: Path) -> list[dict[str, Any]]
                      "profile_terms": len(fit.get("profile_coefficients") or []),
                      "rest_terms": len(fit.get("rest_coefficients") or []),
                      "min_tangent_over_ei": (man.get("bending_tangent") or {}).get("min_over_EI"),
-                     "learn_seconds": seconds})
+                     "learn_seconds": seconds, **extra})
         print(rows[-1], flush=True)
     return rows
 
@@ -143,6 +203,8 @@ def main() -> None:
     ap.add_argument("--keep", default=None, help="directory to keep the records and models in")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     ap.add_argument("--append", action="store_true", help="add the rows to an existing --csv")
+    ap.add_argument("--truth-refine", type=int, default=1, metavar="K",
+                    help="records from a true rod with K times more segments (module docstring)")
     args = ap.parse_args()
     for name, material, theta0 in args.case:
         CASES[name] = extra_case(name, material, theta0)
@@ -152,12 +214,15 @@ def main() -> None:
         print(f"materials_unseen.py: --cases: unknown case(s) {unknown}; known: {list(CASES)}",
               file=sys.stderr)
         sys.exit(2)
+    if args.truth_refine < 1:
+        print("materials_unseen.py: --truth-refine: a whole number >= 1", file=sys.stderr)
+        sys.exit(2)
     cfg, sets = overridden(load_config(args.config), args.set)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         for case in names:
-            rows += run_case(cfg, case, root)
+            rows += run_case(cfg, case, root, args.truth_refine)
     out = pd.DataFrame(rows)
     if sets:
         out["overrides"] = json.dumps(sets, sort_keys=True)
