@@ -1,5 +1,7 @@
 """The learned law's 95 % band (laws.parquet ``sd``): the latent posterior widened by the
-delete-a-block jackknife where the targets' errors run along the trajectory, never narrowed."""
+delete-a-block jackknife where the targets' errors run along the trajectory, never narrowed,
+and never below the floor sigma_n / sqrt(blocks) of a record that holds about that many
+independent samples of its errors."""
 
 from __future__ import annotations
 
@@ -28,11 +30,11 @@ def _kappa(n_t: int = 400) -> np.ndarray:
     return 20.0 * np.exp(-0.5 * t) * np.cos(2.0 * np.pi * 2.0 * t)
 
 
-def _band(tmp_path, err: np.ndarray, blocks: int):
+def _band(tmp_path, err: np.ndarray, blocks: int, floor: bool = False):
     kappa = _kappa(err.size)
     stem = _saved_law(tmp_path, err, kappa)
     tab = law_table(stem, "obj_m", ["kappa"], PAPER_ROD, n_grid=61, pad=0.0, max_points=400, seed=0,
-                    s_points=3, band_blocks=blocks)
+                    s_points=3, band_blocks=blocks, floor=floor)
     return tab, kappa
 
 
@@ -52,6 +54,34 @@ def test_a_systematic_error_along_the_trajectory_widens_the_band_to_hold_the_tru
     assert inside(latent) < 0.9 <= inside(wide)
 
 
+def test_a_bias_common_to_every_block_is_held_by_the_floor_not_the_jackknife(tmp_path):
+    """Targets 0.1 % too soft in every block (a discretisation error of the moment balance is the
+    same wherever the record goes; at most half the targets' scatter here) plus independent
+    noise: no block moves the mean more than the latent band allows (sd_scale about 1), and that
+    band misses the true law; the floor sigma_n / sqrt(blocks), uniform over the inputs, holds
+    it. (A bias well above sigma_n / sqrt(blocks) stays outside: no band the record can size
+    holds an error it shows in no statistic.)"""
+    kappa = _kappa(400)
+    err = -0.001 * EI * kappa + np.random.default_rng(3).normal(0.0, 2e-3 * EI * 20.0, kappa.size)
+    stem = _saved_law(tmp_path, err, kappa)
+    sigma_n = float(__import__("json").loads((tmp_path / "obj_m.json").read_text())["sigma_n"])
+    kw = dict(n_grid=61, pad=0.0, max_points=400, seed=0, s_points=3, band_blocks=10)
+    bare = law_table(stem, "obj_m", ["kappa"], PAPER_ROD, floor=False, **kw)
+    held = law_table(stem, "obj_m", ["kappa"], PAPER_ROD, floor=True, **kw)
+    truth = EI * bare["x"].to_numpy()
+    inside = lambda tab: np.mean(np.abs(tab["mean"] - truth) <= 1.96 * tab["sd"])  # noqa: E731
+    assert (bare["sd_scale"] < 1.1).all() and (bare["sd_floor"] == 0.0).all()
+    np.testing.assert_allclose(held["sd_floor"], sigma_n / np.sqrt(10), rtol=1e-12)
+    np.testing.assert_allclose(held["sd"] ** 2, bare["sd"] ** 2 + held["sd_floor"] ** 2, rtol=1e-9)
+    assert inside(bare) < 0.5 and inside(held) >= 0.9
+
+
+def test_without_blocks_the_band_has_no_floor(tmp_path):
+    err = np.random.default_rng(4).normal(0.0, 1e-3 * EI * 20.0, 400)
+    tab, _ = _band(tmp_path, err, 0, floor=True)
+    assert (tab["sd_floor"] == 0.0).all()
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_independent_noise_leaves_the_latent_band(tmp_path, seed):
     """Noise independent from sample to sample: the jackknife moves the mean no more than the
@@ -69,7 +99,7 @@ def test_a_matern_law_gets_its_own_kernels_band(tmp_path):
                 standardise_y=True, seed=0)
     gp.save(tmp_path / "obj_m", extra={"features": ["kappa"]})
     tab = law_table(tmp_path / "obj_m", "obj_m", ["kappa"], PAPER_ROD, n_grid=31, pad=0.2, max_points=400,
-                    seed=0, s_points=3, band_blocks=4)
+                    seed=0, s_points=3, band_blocks=4, floor=False)
     mean, var = gp.predict(tab["x"].to_numpy()[:, None], return_var=True)
     np.testing.assert_allclose(tab["mean"], np.ravel(mean), rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(tab["sd"] / tab["sd_scale"], np.sqrt(np.ravel(var)), rtol=1e-5)

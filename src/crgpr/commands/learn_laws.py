@@ -37,7 +37,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
 
     cov = {m: covered_ranges(out / m, json.loads((out / f"{m}.json").read_text())["features"])
            for m in trained}
-    tab = law_tables(out, trained, params, settings, seed, warp, warp_cov, warp_truncation, choice)
+    tab = law_tables(out, trained, params, settings, seed, True, warp, warp_cov, warp_truncation, choice)
     if reach is None and "obj_m" in trained and extrapolation is not None:
         reach = law_reach(tab, float(extrapolation["band"]), float(extrapolation["tangent_span"]), center)
     entries = {"law_inputs_covered": cov, "bending_extrapolation": None if reach is None else reach.to_dict(),
@@ -47,7 +47,7 @@ def law_outputs(out: Path, trained: list[str], params: RodParams, settings: dict
     tab = continue_table(tab, reach)
     write_parquet(tab, out / LAW_TABLE, {"kind": "learned_laws", "columns": "law, input, x, mean, sd, at_s, "
                                          "nominal, covered, covered_lo, covered_hi, sd_points, sd_scale, "
-                                         "continued (SI units)"})
+                                         "sd_floor, continued (SI units)"})
     law_figure(tab, out / LAW_FIGURE, f"learned laws, {out.name}")
     return {**entries, "law_table": LAW_TABLE, "law_figure": LAW_FIGURE}
 
@@ -57,7 +57,7 @@ def bending_reach(out: Path, params: RodParams, cam: dict[str, Any], seed: int, 
     """The ``Reach`` of the bending law just written to ``out`` as learned (before any record fit:
     its own band; ``cam``: config ``camera.learn``, its ``law_table`` and ``extrapolation``)."""
     ext = cam["extrapolation"]
-    tab = law_tables(out, ["obj_m"], params, cam["law_table"], seed)
+    tab = law_tables(out, ["obj_m"], params, cam["law_table"], seed, False)  # the reach: no floor
     return law_reach(tab, float(ext["band"]), float(ext["tangent_span"]), center)
 
 

@@ -18,7 +18,14 @@ both sides, the other inputs at their training medians:
   one block is left out than the latent band allows (a law learned from exact full-state
   moments: sigma_n ~ 1e-5 of the law, its finite-difference targets' systematic error not in
   it) the band widens by that factor; it is never narrowed (the jackknife of a local estimator
-  does not see extrapolation, the latent band does). ``band_blocks`` 0: the latent band;
+  does not see extrapolation, the latent band does); and never below ``sd_floor`` =
+  sigma_n / sqrt(band_blocks) (sigma_n: the law GP's noise sd), added in quadrature: with
+  errors correlated along the trajectory the record holds about ``band_blocks`` independent
+  samples of them, not n (the held-out rules' unit, ``learning.law_choice``), and a bias common
+  to every block (a finite-difference or discretisation error of the targets, the same in each
+  block) moves no jackknife estimate; the floor is uniform in the inputs, so it says nothing of
+  where the data end, and the bending law's reach (``learning.extrapolation``) is taken on the
+  band without it (``floor`` False). ``band_blocks`` 0: the latent band;
 * ``nominal``: the nominal rod's law at the same inputs (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 -
   nu2_0), m = EI (kappa - kappa0));
 * ``covered``: whether x_j lies inside [lo_j, hi_j];
@@ -66,8 +73,8 @@ def _mean(stem: Path, X: np.ndarray) -> np.ndarray:
     return np.asarray(ev(X[:, 0]) if isinstance(ev, Table1D) else ev(X), dtype=float).ravel()
 
 
-def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple[GP, float]:
-    """The GP of a law's band (module docstring, ``sd``) and its ``sd_scale``."""
+def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple[GP, float, float]:
+    """The GP of a law's band (module docstring, ``sd``), its ``sd_scale`` and ``sd_floor``."""
     from crgpr.uq.samples import load_gp_spec  # rows time-major, an odd law's reflections interleaved
 
     spec, _, _ = load_gp_spec(stem, stem.name, sampled=False)
@@ -78,14 +85,25 @@ def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple
     c = 1.0
     if band_blocks and idx.size >= 2 * band_blocks:
         c = max(1.0, float(heldout_block_scale(gp, band_blocks, None, "jackknife", max_points)[0]))
-    return (scaled_spec(gp, c) if c > 1.0 else gp), c
+    floor = 0.0
+    if band_blocks:
+        floor = float(json.loads(stem.with_suffix(".json").read_text())["sigma_n"]) / np.sqrt(band_blocks)
+    return (scaled_spec(gp, c) if c > 1.0 else gp), c, floor
+
+
+def _band_sd(gp: GP, X: np.ndarray, floor: float) -> np.ndarray:
+    """sqrt(var + floor^2) of the band's GP at rows X (module docstring)."""
+    var = np.asarray(gp.predict(X, return_var=True)[1], dtype=float).ravel()
+    return np.sqrt(var + floor**2)
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
-              max_points: int, seed: int, s_points: int, band_blocks: int, warp: Warp | None = None,
-              warp_cov: np.ndarray | None = None, truncation: np.ndarray | None = None) -> pd.DataFrame:
+              max_points: int, seed: int, s_points: int, band_blocks: int, floor: bool,
+              warp: Warp | None = None, warp_cov: np.ndarray | None = None,
+              truncation: np.ndarray | None = None) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
-    covered_lo, covered_hi, sd_points, sd_scale, at_s. ``warp``: the bending law's record-fit warp
+    covered_lo, covered_hi, sd_points, sd_scale, sd_floor, at_s (``floor`` False: the band without
+    its floor, ``sd_floor`` 0). ``warp``: the bending law's record-fit warp
     (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd;
     ``warp_cov``: its coefficients' covariance, whose sd of the warp adds to the band:
     sd^2 = (w sd_law)^2 + (m_law sd_w)^2 (``truncation``: with the warp's truncation estimate,
@@ -93,7 +111,8 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
-    sd_gp, c = _sd_model(stem, max_points, seed, band_blocks)
+    sd_gp, c, sd_floor = _sd_model(stem, max_points, seed, band_blocks)
+    sd_floor = sd_floor if floor else 0.0
     med = np.median(Xt, axis=0)
     js = features.index("s") if "s" in features else None
     s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
@@ -110,15 +129,14 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
             s_rel = None if js is None else X[:, js] / (params.N * params.ds)
             for i in _curvature_columns(features):  # the warp's rest shift moves the law's curvature inputs
                 X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
-            _, var = sd_gp.predict(X, return_var=True)
-            mean, sd = _warped(_mean(stem, X), np.sqrt(np.asarray(var, dtype=float).ravel()),
+            mean, sd = _warped(_mean(stem, X), _band_sd(sd_gp, X, sd_floor),
                                None if warp is None else X[:, features.index("kappa")], warp, warp_cov, s_rel,
                                truncation)
             rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": mean, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
                                       "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
-                                      "at_s": float(sv)}))
+                                      "sd_floor": sd_floor, "at_s": float(sv)}))
     return pd.concat(rows, ignore_index=True)
 
 
@@ -149,7 +167,7 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
     (``law_table``'s columns; input kappa, covered range the warp's [c - kappa_s, c + kappa_s]):
     mean m w, sd from the warp (0 without the warp's covariance) and, where the data chose the
     nominal law (``choice``: its ``law_choice`` entry), the departure of the law's richer
-    stand-in (``law_choice.standin_departure``) times |w|; sd_points 0, sd_scale 1."""
+    stand-in (``law_choice.standin_departure``) times |w|; sd_points 0, sd_scale 1, sd_floor 0."""
     c, ks = float(warp[0]), float(warp[1])
     lo, hi = c - ks, c + ks
     g = np.linspace(lo - pad * (hi - lo), hi + pad * (hi - lo), n_grid)
@@ -157,14 +175,15 @@ def warped_nominal_table(params: RodParams, warp: Warp, warp_cov: np.ndarray | N
     mean, sd = _warped(m, standin_departure(g, choice), g, warp, warp_cov, None, truncation)
     return pd.DataFrame({"law": "obj_m", "input": "kappa", "x": g, "mean": mean, "sd": sd, "nominal": m,
                          "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
-                         "sd_points": 0, "sd_scale": 1.0, "at_s": np.nan})
+                         "sd_points": 0, "sd_scale": 1.0, "sd_floor": 0.0, "at_s": np.nan})
 
 
 def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, settings: dict[str, Any],
-               seed: int, warp: Warp | None = None, warp_cov: np.ndarray | None = None,
+               seed: int, floor: bool, warp: Warp | None = None, warp_cov: np.ndarray | None = None,
                truncation: np.ndarray | None = None, choice: dict[str, Any] | None = None) -> pd.DataFrame:
     """The tables of every learned law of a ``crgpr learn`` directory (``settings``: the config's
-    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``warp``,
+    ``camera.learn.law_table``: n_grid, pad, max_points, s_points, band_blocks; ``floor``: the
+    band with its ``sd_floor``, ``law_table``; ``warp``,
     ``warp_cov``, ``truncation``: the bending law's record-fit warp, its coefficient covariance and
     truncation estimate, ``law_table``; ``choice``: the bending law's ``law_choice`` entry, the
     band of a nominal law the data chose, ``warped_nominal_table``;
@@ -178,7 +197,7 @@ def law_tables(model_dir: str | Path, trained: list[str], params: RodParams, set
         meta = json.loads(stem.with_suffix(".json").read_text())
         out.append(law_table(stem, name, list(meta["features"]), params, int(settings["n_grid"]),
                              float(settings["pad"]), int(settings["max_points"]), seed,
-                             int(settings["s_points"]), int(settings["band_blocks"]),
+                             int(settings["s_points"]), int(settings["band_blocks"]), floor,
                              *((warp, warp_cov, truncation) if name == "obj_m" else (None, None, None))))
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame()
 
@@ -191,8 +210,8 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     """The bending law m of a ``crgpr learn`` directory at the curvatures ``kappa`` (n,) for every
     segment j at its own arclength s_j (``features.segment_arclength``): posterior mean and sd,
     each (n, N) (``with_sd`` False: the mean alone, sd 0). A learned ``obj_m``: its rollout
-    evaluator's mean and the sd of ``law_table`` (inputs other than kappa and s at their training
-    medians); a nominal one (not in
+    evaluator's mean and the sd of ``law_table`` with its floor (inputs other than kappa and s at
+    their training medians); a nominal one (not in
     ``trained``): EI (kappa - kappa0) of ``params`` with the sd of its richer stand-in's departure
     where the data chose it (``choice``: its ``law_choice`` entry; else 0). Either times the
     record-fit ``warp`` where the model has one (``learning.record_fit``)."""
@@ -208,7 +227,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         med = np.median(np.asarray(f["X"], dtype=float), axis=0)
-    sd_gp = _sd_model(stem, max_points, seed, band_blocks)[0] if with_sd else None
+    sd_gp, _, sd_floor = _sd_model(stem, max_points, seed, band_blocks) if with_sd else (None, 1.0, 0.0)
     s, s_rel = segment_arclength(N, params.ds), segment_positions(N)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
     at = np.empty((kappa.size, N))  # the curvature each segment's law is evaluated at (the warp's rest shift)
@@ -221,8 +240,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
                 X[:, i] = shifted_kappa(X[:, i], s_rel[j:j + 1], warp)
         at[:, j] = X[:, features.index("kappa")]
         mean[:, j] = _mean(stem, X)
-        sd[:, j] = 0.0 if sd_gp is None else np.sqrt(np.asarray(sd_gp.predict(X, return_var=True)[1],
-                                                                 dtype=float).ravel())
+        sd[:, j] = 0.0 if sd_gp is None else _band_sd(sd_gp, X, sd_floor)
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
