@@ -168,3 +168,40 @@ def test_rollout_cli_rolls_a_grey_box_directory_out(noisy_models, tmp_path):
     assert main(["rollout", "--models", str(d / "auto"), "--theta0", "60", "--out", str(out),
                  "--t-end", "0.05", "--config", str(SMOKE)]) == 0
     assert out.exists()
+
+
+class _Runaway:
+    """A learned stretch law that fits the nominal one plus a departure on its record's strains
+    and whose trend runs away beyond them (a GP's basis fitted over one record)."""
+
+    def __init__(self, P):
+        self.EA = P.EA
+
+    def __call__(self, X):
+        X = np.asarray(X, dtype=float)
+        return self.EA * (X[..., 0] - 1.0) + 50.0 * X[..., 2] ** 3
+
+
+def test_a_learned_stretch_law_is_continued_by_the_nominal_one_beyond_its_covered_strains():
+    """Inside the covered box the learned law is as learned; beyond it, its value at the box's
+    edge plus the nominal law's increment: continuous at the edge, the nominal stiffness EA
+    along nu1, no dependence the record did not show along kappa (the runaway cubic stays at
+    its edge value)."""
+    from crgpr.learning.nominal import NominalContinuation
+
+    P = paper_rod()
+    lo, hi = np.array([0.99, -0.01, -5.0]), np.array([1.01, 0.01, 5.0])
+    law = _Runaway(P)
+    cont = NominalContinuation(law, "n1", P, lo, hi)
+    inside = np.array([[1.005, 0.0, 3.0], [0.995, 0.005, -4.0]])
+    np.testing.assert_array_equal(cont(inside), law(inside))
+    edge = np.array([1.0, 0.0, 5.0])
+    beyond_k = np.array([1.0, 0.0, 40.0])
+    assert cont(beyond_k[None])[0] == pytest.approx(law(edge[None])[0], rel=1e-12)
+    assert abs(law(beyond_k[None])[0]) > 100 * abs(cont(beyond_k[None])[0])
+    a, b = np.array([[1.03, 0.0, 0.0]]), np.array([[1.05, 0.0, 0.0]])
+    assert (cont(b) - cont(a))[0] == pytest.approx(P.EA * 0.02, rel=1e-9)
+    just = np.array([[1.01 + 1e-9, 0.0, 0.0]])
+    assert cont(just)[0] == pytest.approx(law(np.array([[1.01, 0.0, 0.0]]))[0], abs=P.EA * 2e-9)
+    with pytest.raises(ValueError, match="only n1, n2"):
+        NominalContinuation(law, "m", P, lo, hi)

@@ -9,13 +9,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from crgpr.config import ConfigError
 from crgpr.gp.evaluators import load_evaluator
 from crgpr.learning.extrapolation import TangentContinuation, manifest_reach
-from crgpr.learning.features import segment_arclength
+from crgpr.learning.features import OBJ_N_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.learning.learned import OBJECTIVE_COMPONENTS, PAPER_COMPONENTS, LearnedRod
-from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, SelectedInputs
+from crgpr.learning.nominal import NOMINAL_LAWS, NominalContinuation, NominalLaw, SelectedInputs
 from crgpr.learning.warp import BendingWarp, manifest_warp
 from crgpr.physics.params import RodParams
 
@@ -52,9 +54,10 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
     """The components of a model directory's learned rod and its theta window: each learned model
     as ``load(name)`` gives it (the rollout's evaluator, or its posterior samples for the UQ
     rollout), seen through ``SelectedInputs`` where it was fitted on some feature columns, and
-    the laws taken from the nominal rod (``nominal_laws``, grey box); the bending law times its
-    record-fit warp where the manifest keeps one (``learning.record_fit``). One assembly for the mean
-    and the sampled rod."""
+    the laws taken from the nominal rod (``nominal_laws``, grey box); learned stretch and shear
+    laws continued by the nominal ones beyond their covered inputs (``nominal.NominalContinuation``);
+    the bending law times its record-fit warp where the manifest keeps one
+    (``learning.record_fit``). One assembly for the mean and the sampled rod."""
     params = RodParams.from_dict(man["rod"])
     comps: dict[str, Any] = {NOMINAL_LAWS[k]: NominalLaw(k, params) for k in man.get("nominal_laws", [])}
     center = None
@@ -66,6 +69,12 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
         comps[m] = comp if cols is None else SelectedInputs(comp, cols, s_mid)
         if m in ("q_x", "dH_dtheta"):
             center = meta.get("theta_center")
+    covered = man.get("law_inputs_covered") or {}
+    for law in ("n1", "n2"):  # learned stretch and shear laws: nominal beyond their record's strains
+        m = NOMINAL_LAWS[law]
+        if m in comps and m in learned_models(man) and m in covered:
+            box = np.array([covered[m][f] for f in OBJ_N_FEATURES], dtype=float)
+            comps[m] = NominalContinuation(comps[m], law, params, box[:, 0], box[:, 1])
     warp = manifest_warp(man.get("record_fit"))
     if warp is not None:
         comps["obj_m"] = BendingWarp(comps["obj_m"], *warp)

@@ -215,3 +215,33 @@ def choose_nominal(setting: str | list[str], snr: dict[str, dict], snr_min: floa
         raise ValueError(f"camera.learn.nominal_laws: unknown law(s) {bad}; expected 'auto' or a "
                          f"subset of {sorted(NOMINAL_LAWS)}")
     return [k for k in NOMINAL_LAWS if k in setting]
+
+
+class NominalContinuation:
+    """A learned stretch or shear law (component ``obj_n1`` / ``obj_n2``, rows (..., 3) =
+    [nu1, nu2, kappa]) continued by the nominal law beyond the inputs its record covered:
+
+        n(x) = n_learned(clip(x)) + nominal(x) - nominal(clip(x)),
+
+    clip(x) the nearest point of the covered box [lo_j, hi_j] (the manifest's
+    ``law_inputs_covered``). Inside the box the learned law is unchanged; beyond it the law
+    keeps its value at the edge and takes the nominal stiffness EA (GA) for the rest, and
+    nothing of the GP's reversion to its basis trend, which one record fitted over its own
+    strains. A law fitted on one trajectory falls back towards the nominal one where the data
+    did not reach (a release from a larger angle stretches the rod further than the record
+    did)."""
+
+    def __init__(self, component: Any, law: str, params: RodParams, lo: np.ndarray, hi: np.ndarray):
+        if law not in ("n1", "n2"):
+            raise ValueError(f"nominal continuation of {law!r}: only n1, n2")
+        self.component, self.nominal = component, NominalLaw(law, params)
+        self.lo, self.hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+        self.meta = getattr(component, "meta", {})
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        inside = (X >= self.lo) & (X <= self.hi)
+        if inside.all():
+            return self.component(X)  # inside the covered box (every step of a record-like rollout)
+        Xc = np.clip(X, self.lo, self.hi)
+        return self.component(Xc) + self.nominal(X) - self.nominal(Xc)
