@@ -229,14 +229,19 @@ class NominalContinuation:
     nothing of the GP's reversion to its basis trend, which one record fitted over its own
     strains. A law fitted on one trajectory falls back towards the nominal one where the data
     did not reach (a release from a larger angle stretches the rod further than the record
-    did)."""
+    did). A wrapper like ``extrapolation.TangentContinuation`` (``rewrap``)."""
 
     def __init__(self, component: Any, law: str, params: RodParams, lo: np.ndarray, hi: np.ndarray):
         if law not in ("n1", "n2"):
             raise ValueError(f"nominal continuation of {law!r}: only n1, n2")
-        self.component, self.nominal = component, NominalLaw(law, params)
+        self.component, self.law, self.params = component, law, params
+        self.nominal = NominalLaw(law, params)
         self.lo, self.hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
         self.meta = getattr(component, "meta", {})
+
+    def rewrap(self, component: Any) -> NominalContinuation:
+        """The same continuation of another component (e.g. the law's posterior samples)."""
+        return NominalContinuation(component, self.law, self.params, self.lo, self.hi)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X, dtype=float)

@@ -42,7 +42,7 @@ from crgpr.gp.sampling import compress as compress_samples
 from crgpr.io import load_npz, write_json, write_npz
 from crgpr.learning.extrapolation import TangentContinuation
 from crgpr.learning.gradient_models import ALL_MODELS
-from crgpr.learning.nominal import SelectedInputs
+from crgpr.learning.nominal import NominalContinuation, SelectedInputs
 from crgpr.learning.warp import BendingWarp
 from crgpr.uq.settings import UQSettings
 
@@ -107,11 +107,12 @@ def uq_seed(seed: int, model: str) -> int:
 
 
 # components that see another through ``component``
-WRAPPERS = (SelectedInputs, BendingWarp, TangentContinuation)
+WRAPPERS = (SelectedInputs, BendingWarp, TangentContinuation, NominalContinuation)
 
 
 def unwrapped(component: Any) -> Any:
-    """The component inside any ``WRAPPERS`` (input selection, record-fit warp, tangent continuation)."""
+    """The component inside any ``WRAPPERS`` (input selection, record-fit warp, tangent continuation,
+    nominal continuation)."""
     while isinstance(component, WRAPPERS):
         component = component.component
     return component
