@@ -62,6 +62,8 @@ from crgpr.io import write_parquet
 from crgpr.physics.params import SimSettings
 from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame
 
+INPUTS: tuple[str, ...] = ("full_state", "camera")
+
 # case -> (rod.material overlay of the true rod, release angle of the training record [deg])
 CASES: dict[str, tuple[dict[str, Any], float]] = {
     "defect": ({"defect_start": 0.3, "defect_end": 0.45, "defect_factor": 0.5}, 70.0),
@@ -115,9 +117,23 @@ def refined_data(cfg: dict[str, Any], case: str, refine: int, d: Path) -> float:
     return float(np.mean(floor))
 
 
-def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1) -> list[dict[str, Any]]:
+def grid_floor(cfg: dict[str, Any], case: str, test: Path) -> float:
+    """The grid's floor (module docstring) from kept test records of a refined true rod."""
+    st = study_settings(cfg, float(cfg["materials_study"]["rollout_t_end_s"]))
+    gt = pd.read_parquet(test)
+    rod = material_case_rod(cfg, case)
+    floor = []
+    for a, g in gt.groupby("theta0_deg"):
+        th = g.pivot(index="t", columns="node", values="theta").to_numpy()
+        floor.append(np.sqrt(np.mean((simulate(float(a), rod, st).q[:, 1:, 2] - th[:, 1:])**2)))
+    return float(np.mean(floor))
+
+
+def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,
+             inputs: tuple[str, ...] = INPUTS, reuse: bool = False) -> list[dict[str, Any]]:
     """The study's rules on one case in ``root``: its records (from a ``refine`` times finer true
-    rod where > 1), then both inputs learned and scored."""
+    rod where > 1; ``reuse``: the records kept in ``root`` from an earlier run, where all three
+    are there), then ``inputs`` learned and scored."""
     material, theta0 = CASES[case]
     c = copy.deepcopy(cfg)
     c["materials_study"]["cases"][case] = material
@@ -125,12 +141,16 @@ def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1) -> lis
     d = root / case
     d.mkdir(parents=True, exist_ok=True)
     extra = {}
-    if refine > 1:
+    kept = reuse and all((d / f).is_file() for f in ("train.parquet", "camera.parquet", "test.parquet"))
+    if kept:
+        if refine > 1:
+            extra = {"truth_refine": refine, "grid_floor_rmse_theta": grid_floor(c, case, d / "test.parquet")}
+    elif refine > 1:
         extra = {"truth_refine": refine, "grid_floor_rmse_theta": refined_data(c, case, refine, d)}
     else:
         material_data(c, case, str(d / "train.parquet"), str(d / "camera.parquet"), str(d / "test.parquet"))
     rows = []
-    for source in ("full_state", "camera"):
+    for source in inputs:
         t0 = time.perf_counter()
         material_learn(c, source, str(d / ("train.parquet" if source == "full_state" else "camera.parquet")),
                        str(d / f"model_{source}"))
@@ -205,7 +225,14 @@ def main() -> None:
     ap.add_argument("--append", action="store_true", help="add the rows to an existing --csv")
     ap.add_argument("--truth-refine", type=int, default=1, metavar="K",
                     help="records from a true rod with K times more segments (module docstring)")
+    ap.add_argument("--inputs", default=",".join(INPUTS), help="comma-separated inputs to learn from")
+    ap.add_argument("--reuse", action="store_true", help="the records kept in --keep from an earlier run")
     args = ap.parse_args()
+    inputs = tuple(args.inputs.split(","))
+    if not inputs or any(i not in INPUTS for i in inputs) or (args.reuse and not args.keep):
+        print(f"materials_unseen.py: --inputs: a comma-separated subset of {list(INPUTS)}; "
+              "--reuse needs --keep", file=sys.stderr)
+        sys.exit(2)
     for name, material, theta0 in args.case:
         CASES[name] = extra_case(name, material, theta0)
     names = args.cases.split(",") if args.cases else [c[0] for c in args.case] or list(CASES)
@@ -222,7 +249,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         for case in names:
-            rows += run_case(cfg, case, root, args.truth_refine)
+            rows += run_case(cfg, case, root, args.truth_refine, inputs, args.reuse)
     out = pd.DataFrame(rows)
     if sets:
         out["overrides"] = json.dumps(sets, sort_keys=True)

@@ -205,3 +205,67 @@ def test_a_learned_stretch_law_is_continued_by_the_nominal_one_beyond_its_covere
     assert cont(just)[0] == pytest.approx(law(np.array([[1.01, 0.0, 0.0]]))[0], abs=P.EA * 2e-9)
     with pytest.raises(ValueError, match="only n1, n2"):
         NominalContinuation(law, "m", P, lo, hi)
+
+
+class _ChordCoupled:
+    """A stretch law that depends on the curvature too (n1 + EA kappa^2 ds^2 / 24: a coarse
+    grid's chord shorter than the arc), while the bending law does not depend on nu1."""
+
+    def __init__(self, law, P):
+        self.law, self.c = law, P.EA * P.ds**2 / 24.0
+
+    def __call__(self, X):
+        X = np.asarray(X, dtype=float)
+        return self.law(X) + self.c * X[..., 2] ** 2
+
+
+def test_learned_laws_of_their_own_strains_have_a_symmetric_stiffness(noisy_models, smoke_training_run):
+    """Every law learned (n1, n2, m, momentum maps), n1 of nu1 and n2 of nu2 alone
+    (camera.learn.strain_law_inputs: own): the learned force field is the gradient of one stored
+    energy, so its tangent stiffness is symmetric at the record's states; a stretch law coupled
+    to the curvature is not (learning/stiffness.py)."""
+    from crgpr.learning.stiffness import reciprocity_gap
+
+    _, d = noisy_models
+    _, tr = smoke_training_run
+    man = read_manifest(d / "all")
+    assert {"obj_n1", "obj_n2", "obj_m"} <= set(man["models"])
+    assert man["law_inputs_covered"]["obj_n1"].keys() == {"nu1"}
+    assert man["law_inputs_covered"]["obj_n2"].keys() == {"nu2"}
+    assert man["stiffness_check"]["reciprocity_gap_max"] == 0.0  # at the record's frames, by crgpr learn
+    model, _ = load_learned(d / "all")
+    frames = np.linspace(0, tr.t.size - 1, 4).astype(int)[1:]
+    assert all(reciprocity_gap(model, tr.q[k]) == 0.0 for k in frames)
+    n1 = _ChordCoupled(model.components["obj_n1"], model.params)
+    coupled = LearnedRod({**model.components, "obj_n1": n1}, "objective", model.params)
+    assert max(reciprocity_gap(coupled, tr.q[k]) for k in frames) > 1e-3
+
+
+def test_the_nominal_rods_stiffness_is_symmetric_and_a_coupled_law_flutters():
+    """The nominal rod (one stored energy) at a bent, stretched, sheared configuration: K
+    symmetric to the differences' accuracy, no flutter; with a stretch law that follows the
+    curvature (n1 + c kappa, and no nu1 term in m to match it) the stiffness is unsymmetric and
+    oscillating modes grow (learning/stiffness.py)."""
+    from crgpr.learning.nominal import NOMINAL_LAWS
+    from crgpr.learning.stiffness import asymmetry, flutter_rate, reciprocity_gap, stiffness_matrix
+
+    P = paper_rod()
+    rng = np.random.default_rng(0)
+    q = straight_rod(1.2, P)
+    q[1:, :2] += 2e-3 * rng.standard_normal((P.N, 2))
+    q[1:, 2] += 0.3 * np.sin(np.linspace(0, 3, P.N))
+    nominal = {c: NominalLaw(k, P) for k, c in NOMINAL_LAWS.items()}
+    rod = LearnedRod(nominal, "objective", P)
+    K = stiffness_matrix(rod, q)
+    assert asymmetry(K) < 1e-6 and flutter_rate(rod, K) == 0.0 and reciprocity_gap(rod, q) < 1e-6
+
+    class _Follower:
+        def __call__(self, X):
+            X = np.asarray(X, dtype=float)
+            return P.EA * (X[..., 0] - 1.0) + 50.0 * P.EI / P.ds * X[..., 2]
+
+    coupled = LearnedRod({**nominal, "obj_n1": _Follower()}, "objective", P)
+    Kc = stiffness_matrix(coupled, q)
+    assert asymmetry(Kc) > 1e-3 and reciprocity_gap(coupled, q) > 1e-3
+    assert flutter_rate(coupled, Kc) > 0.0
+

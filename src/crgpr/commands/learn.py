@@ -91,7 +91,7 @@ from crgpr.learning.camera import (
 )
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.extrapolation import Reach, TangentContinuation
-from crgpr.learning.features import OBJ_M_FEATURES
+from crgpr.learning.features import OBJ_M_FEATURES, OBJ_N_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choice
 from crgpr.learning.laws import rest_state
@@ -99,6 +99,7 @@ from crgpr.learning.learned import LearnedRod
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, segment_curvature_snr
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.record_fit import RecordFit, fit_record, tail_factor
+from crgpr.learning.stiffness import STRAIN_LAW_INPUTS, stiffness_check
 from crgpr.learning.warp import BendingWarp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
@@ -243,6 +244,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                           f"{OBJ_M_FEATURES}")
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
+    # the stretch and shear laws of their own strains (camera.learn.strain_law_inputs: own): with the
+    # bending law of kappa, the learned laws are the gradient of one stored energy (learning/nominal.py)
+    n_cols = {} if features != "objective" or cam["strain_law_inputs"] == "all" else {
+        f"obj_{k}": [OBJ_N_FEATURES.index(e) for e in STRAIN_LAW_INPUTS[cam["strain_law_inputs"]][k]]
+        for k in ("n1", "n2")}
     if int(cam["rest_degree_max"]) < int(cam["rest_degree"]):
         raise ConfigError(f"camera.learn.rest_degree_max: {cam['rest_degree_max']} is below "
                           f"camera.learn.rest_degree ({cam['rest_degree']})")
@@ -305,7 +311,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     for name in trained:
         meta = train_model_arrays(cfg_m, name, arr, params, out / name, str(measured), prefilter_method,
                                   extra={"input": kind}, segments=masks[name],
-                                  columns=m_cols if name == "obj_m" else None,
+                                  columns=m_cols if name == "obj_m" else n_cols.get(name),
                                   odd_about=odd if name == "obj_m" else None,
                                   arclength=name == "obj_m" and along_s["used"])
         reports[name] = {k: meta[k] for k in ("n", "seconds", "approx_error_vs_exact") if k in meta}
@@ -325,20 +331,34 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         # a damped rod's learned bending law against the nominal one, warped (learning/record_fit.py)
         bending_scale = (float(np.max(np.abs(kappa - params.kappa0))) if auto and "obj_m" in trained
                          and damping is not None and damping.kept else None)
-        fit = _record_fit(cfg, out, arr, params, grey["nominal_laws"], trained, inputs, ports, center,
-                          float(np.max(np.abs(kappa - center))),
-                          0.0 if damping is None else damping.coefficient, kind == "full_state",
-                          auto and learned_any, bending_scale,
-                          "obj_m" in trained and along_s["used"] and kind != "full_state", reach)
+
+        def fit_with(nominal: list[str], laws: list[str]) -> RecordFit:
+            return _record_fit(cfg, out, arr, params, nominal, laws, inputs, ports, center,
+                               float(np.max(np.abs(kappa - center))),
+                               0.0 if damping is None else damping.coefficient, kind == "full_state",
+                               auto and learned_any, bending_scale,
+                               "obj_m" in laws and along_s["used"] and kind != "full_state", reach)
+        fit = fit_with(grey["nominal_laws"], trained)
+        grey = {**grey, "strain_laws_nominal_by_record_fit": False}
+        strain = [m for m in trained if m in ("obj_n1", "obj_n2")]
+        if fit.nominal_fallback and strain and auto:
+            # the learned rod follows its record worse than the nominal one: the stretch and shear
+            # laws (whose targets the prefilter smooths most) are taken nominal first, the rest kept
+            # where that rod no longer falls back (docs/learned-laws.md, "Learned or nominal")
+            nominal = [k for k in NOMINAL_LAWS if k in {*grey["nominal_laws"], "n1", "n2"}]
+            retry = fit_with(nominal, [m for m in trained if m not in strain])
+            if not retry.nominal_fallback:
+                fit, refused, trained = retry, strain, [m for m in trained if m not in strain]
+                grey = {**grey, "nominal_laws": nominal, "strain_laws_nominal_by_record_fit": True}
         if damping is not None and damping.kept:
             damping = replace(damping, coefficient=fit.damping, c_record_fit=fit.damping)
         if reach is not None:  # the tangent's tail factor the fit sized (1 where no warp was kept)
             reach = replace(reach, slope_factor=math.exp(fit.tail_log_factor))
         if fit.bending_nominal:  # the nominal bending law, warped, follows the record better
-            refused, trained = ["obj_m"], [m for m in trained if m != "obj_m"]
+            refused, trained = [*refused, "obj_m"], [m for m in trained if m != "obj_m"]
             grey = {**grey, "nominal_laws": [k for k in NOMINAL_LAWS if k in {*grey["nominal_laws"], "m"}]}
         if fit.nominal_fallback:  # the learned laws forecast the record worse than the nominal rod
-            refused, trained = trained, []
+            refused, trained = [*refused, *trained], []
             grey = {**grey, "nominal_laws": list(NOMINAL_LAWS)}
             if damping is not None:
                 damping = replace(damping, kept=False, coefficient=0.0)
@@ -362,8 +382,13 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "models": trained, "models_refused": refused, **grey, **laws,
                 "inputs": None if inputs is None else inputs.describe(),
                 "ports": None if ports is None else ports.to_dict(),
-                "model_reports": reports, "seed": seed,
-                "seconds": time.perf_counter() - t_start, "code_version": code_version()}
+                "model_reports": reports, "seed": seed}
+    if features == "objective":  # is the learned force field a gradient (learning/stiffness.py)
+        comps, _ = learned_components(out, manifest, lambda m: load_evaluator(out / m))
+        rod = LearnedRod(comps, features, params, None, learned_damping(manifest))
+        q = np.stack([arr["x"], arr["y"], arr["theta"]], axis=-1)
+        manifest["stiffness_check"] = stiffness_check(rod, q, int(cam["stiffness_frames"]))
+    manifest.update(seconds=time.perf_counter() - t_start, code_version=code_version())
     write_json(manifest, out / MANIFEST)
     return manifest
 

@@ -73,7 +73,8 @@ def learned_components(model_dir: str | Path, man: dict[str, Any], load: Callabl
     for law in ("n1", "n2"):  # learned stretch and shear laws: nominal beyond their record's strains
         m = NOMINAL_LAWS[law]
         if m in comps and m in learned_models(man) and m in covered:
-            box = np.array([covered[m][f] for f in OBJ_N_FEATURES], dtype=float)
+            # a law of its own strain (camera.learn.strain_law_inputs: own) covers that input alone
+            box = np.array([covered[m].get(f, [-np.inf, np.inf]) for f in OBJ_N_FEATURES], dtype=float)
             comps[m] = NominalContinuation(comps[m], law, params, box[:, 0], box[:, 1])
     warp = manifest_warp(man.get("record_fit"))
     if warp is not None:

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
+from crgpr.learning.features import OBJ_M_FEATURES, OBJ_N_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import inner_segments, training_data
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio, pooled_gain
 from crgpr.learning.nominal import (
@@ -64,6 +64,7 @@ from crgpr.learning.nominal import (
     position_noise_std,
     strain_snr,
 )
+from crgpr.learning.stiffness import STRAIN_LAW_INPUTS
 from crgpr.physics.params import RodParams
 
 
@@ -284,7 +285,11 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
         for k, (col, stiff, ref) in {"n1": (0, params.EA, params.nu1_0), "n2": (1, params.GA, params.nu2_0),
                                      "m": (0, params.EI, params.kappa0)}.items():
             X, y = training_data(arr, params, f"obj_{k}", None, inner)
-            Xl = X[:, :1] if k == "m" else X  # the local bending law m(kappa)
+            # the local bending law m(kappa); the stretch and shear laws of the strains they will be
+            # learned from (camera.learn.strain_law_inputs)
+            Xl = X[:, :1] if k == "m" else X
+            if k != "m" and cam["strain_law_inputs"] != "all":
+                Xl = X[:, [OBJ_N_FEATURES.index(e) for e in STRAIN_LAW_INPUTS[cam["strain_law_inputs"]][k]]]
             nominal = stiff * (X[:, col] - ref)
             heldout[k] = learned_or_nominal(Xl, y, nominal, int(cam["choice_degree"]),
                                             int(cam["choice_blocks"]), pooled=k == "m").to_dict()
