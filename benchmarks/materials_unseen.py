@@ -60,7 +60,7 @@ from crgpr.commands.materials import (
 from crgpr.config import load_config, material_case_rod
 from crgpr.io import write_parquet
 from crgpr.physics.params import SimSettings
-from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame
+from crgpr.physics.simulate import Trajectory, simulate, trajectory_frame, trajectory_from_frame
 
 INPUTS: tuple[str, ...] = ("full_state", "camera")
 
@@ -112,21 +112,23 @@ def refined_data(cfg: dict[str, Any], case: str, refine: int, d: Path) -> float:
     tests = [_coarse(_fine(cfg, case, float(a), st.t_end, refine), refine) for a in ms["test_deg"]]
     write_parquet(pd.concat([trajectory_frame(t) for t in tests], ignore_index=True), str(d / "test.parquet"),
                   meta)
-    floor = [np.sqrt(np.mean((simulate(t.theta0_deg, material_case_rod(cfg, case), st).q[:, 1:, 2]
-                              - t.q[:, 1:, 2])**2)) for t in tests]
-    return float(np.mean(floor))
+    return _floor(cfg, case, tests)
+
+
+def _floor(cfg: dict[str, Any], case: str, tests: list[Trajectory]) -> float:
+    """The grid's floor (module docstring): the true rod on the model's grid against the refined
+    test records ``tests`` (on the model's nodes), mean RMSE(theta) over them."""
+    st = study_settings(cfg, float(cfg["materials_study"]["rollout_t_end_s"]))
+    rod = material_case_rod(cfg, case)
+    return float(np.mean([np.sqrt(np.mean((simulate(t.theta0_deg, rod, st).q[:, 1:, 2] - t.q[:, 1:, 2])**2))
+                          for t in tests]))
 
 
 def grid_floor(cfg: dict[str, Any], case: str, test: Path) -> float:
-    """The grid's floor (module docstring) from kept test records of a refined true rod."""
-    st = study_settings(cfg, float(cfg["materials_study"]["rollout_t_end_s"]))
-    gt = pd.read_parquet(test)
+    """The grid's floor (``_floor``) from kept test records of a refined true rod."""
     rod = material_case_rod(cfg, case)
-    floor = []
-    for a, g in gt.groupby("theta0_deg"):
-        th = g.pivot(index="t", columns="node", values="theta").to_numpy()
-        floor.append(np.sqrt(np.mean((simulate(float(a), rod, st).q[:, 1:, 2] - th[:, 1:])**2)))
-    return float(np.mean(floor))
+    tests = [trajectory_from_frame(g, rod) for _, g in pd.read_parquet(test).groupby("theta0_deg")]
+    return _floor(cfg, case, tests)
 
 
 def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,

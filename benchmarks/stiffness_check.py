@@ -22,33 +22,16 @@ import numpy as np
 
 from crgpr.commands.model_dir import load_learned
 from crgpr.io import read_parquet
-from crgpr.learning import features as ft
-from crgpr.learning.stiffness import LAW_STEP, M_COLUMNS, reciprocity_gap, stiffness_check
+from crgpr.learning.stiffness import law_jacobian, reciprocity_gap, stiffness_check
+from crgpr.physics.simulate import trajectory_from_frame
 
 
-def record_states(path: str) -> np.ndarray:
-    """Configurations (n_t, N+1, 3) of a full-state trajectory file (columns t, node, x, y, theta)."""
+def record_states(path: str, params) -> np.ndarray:
+    """Configurations (n_t, N+1, 3) of a full-state trajectory file."""
     df = read_parquet(path)
-    missing = [c for c in ("t", "node", "x", "y", "theta") if c not in df.columns]
-    if missing:
-        raise ValueError(f"{path}: not a full-state trajectory (no column {missing[0]})")
-    return np.stack([df.pivot(index="t", columns="node", values=c).to_numpy() for c in ("x", "y", "theta")],
-                    axis=-1)
-
-
-def clamp_jacobian(model, q: np.ndarray) -> np.ndarray:
-    """d(n1, n2, m)/d(nu1, nu2, kappa) of the clamp segment at configuration q (central differences)."""
-    Xn, Xm = (np.array(a) for a in ft.objective_inputs(ft.segment_table(q, model.params.ds)))
-    c, J = model.components, np.zeros((3, 3))
-    for j, (h, cm) in enumerate(zip(LAW_STEP, M_COLUMNS, strict=True)):
-        r = []
-        for sign in (1.0, -1.0):
-            Yn, Ym = Xn.copy(), Xm.copy()
-            Yn[:, j] += sign * h
-            Ym[:, cm] += sign * h
-            r.append(np.array([c["obj_n1"](Yn)[0], c["obj_n2"](Yn)[0], c["obj_m"](Ym)[0]]))
-        J[:, j] = (r[0] - r[1]) / (2.0 * h)
-    return J
+    if "node" not in df.columns:
+        raise ValueError(f"{path}: not a full-state trajectory (no column node)")
+    return trajectory_from_frame(df, params).q
 
 
 def main() -> None:
@@ -60,7 +43,7 @@ def main() -> None:
         model, man = load_learned(args.model_dir)
         if man["features"] != "objective":
             raise ValueError(f"{args.model_dir}: {man['features']} features have no separate laws")
-        q = record_states(man["source"])
+        q = record_states(man["source"], model.params)
     except (OSError, ValueError, KeyError) as exc:
         print(f"stiffness_check.py: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -70,7 +53,7 @@ def main() -> None:
     k = max(ks, key=lambda i: reciprocity_gap(model, q[i]))
     P = model.params
     np.set_printoptions(precision=4, suppress=False)
-    print(f"clamp segment at t index {k}: d(n1, n2, m)/d(nu1, nu2, kappa) =\n{clamp_jacobian(model, q[k])}")
+    print(f"clamp segment at t index {k}: d(n1, n2, m)/d(nu1, nu2, kappa) =\n{law_jacobian(model, q[k])[0]}")
     print(f"nominal: diag(EA, GA, EI) = ({P.EA:.4g}, {P.GA:.4g}, {P.EI:.4g})")
 
 

@@ -91,7 +91,7 @@ from crgpr.learning.camera import (
 )
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.extrapolation import Reach, TangentContinuation
-from crgpr.learning.features import OBJ_M_FEATURES, OBJ_N_FEATURES
+from crgpr.learning.features import OBJ_M_FEATURES
 from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
 from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choice
 from crgpr.learning.laws import rest_state
@@ -99,7 +99,7 @@ from crgpr.learning.learned import LearnedRod
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw, segment_curvature_snr
 from crgpr.learning.prefilter import PrefilterSettings, prefilter, prefiltered_arrays
 from crgpr.learning.record_fit import RecordFit, fit_record, tail_factor
-from crgpr.learning.stiffness import STRAIN_LAW_INPUTS, stiffness_check
+from crgpr.learning.stiffness import stiffness_check, strain_law_columns
 from crgpr.learning.warp import BendingWarp, manifest_warp, manifest_warp_cov, manifest_warp_truncation
 from crgpr.measured.records import MeasuredDataError, ScreenSettings, read_measured, validate_frame
 from crgpr.physics.params import RodParams, SimSettings
@@ -245,10 +245,9 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     m_cols = None if features != "objective" or bend == list(OBJ_M_FEATURES) else [
         OBJ_M_FEATURES.index(f) for f in OBJ_M_FEATURES if f in bend]
     # the stretch and shear laws of their own strains (camera.learn.strain_law_inputs: own): with the
-    # bending law of kappa, the learned laws are the gradient of one stored energy (learning/nominal.py)
-    n_cols = {} if features != "objective" or cam["strain_law_inputs"] == "all" else {
-        f"obj_{k}": [OBJ_N_FEATURES.index(e) for e in STRAIN_LAW_INPUTS[cam["strain_law_inputs"]][k]]
-        for k in ("n1", "n2")}
+    # bending law of kappa, the learned laws are the gradient of one stored energy (learning/stiffness.py)
+    n_cols = {f"obj_{k}": strain_law_columns(cam["strain_law_inputs"], k) if features == "objective" else None
+              for k in ("n1", "n2")}
     if int(cam["rest_degree_max"]) < int(cam["rest_degree"]):
         raise ConfigError(f"camera.learn.rest_degree_max: {cam['rest_degree_max']} is below "
                           f"camera.learn.rest_degree ({cam['rest_degree']})")

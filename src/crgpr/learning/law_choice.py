@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from crgpr.learning.features import OBJ_M_FEATURES, OBJ_N_FEATURES, segment_arclength
+from crgpr.learning.features import OBJ_M_FEATURES, segment_arclength
 from crgpr.learning.gradient_models import inner_segments, training_data
 from crgpr.learning.laws import consistent_gain, heldout_blocks, log_error_ratio, pooled_gain
 from crgpr.learning.nominal import (
@@ -64,7 +64,7 @@ from crgpr.learning.nominal import (
     position_noise_std,
     strain_snr,
 )
-from crgpr.learning.stiffness import STRAIN_LAW_INPUTS
+from crgpr.learning.stiffness import strain_law_columns
 from crgpr.physics.params import RodParams
 
 
@@ -287,9 +287,8 @@ def grey_box(arr: dict[str, np.ndarray], params: RodParams, x: np.ndarray, y: np
             X, y = training_data(arr, params, f"obj_{k}", None, inner)
             # the local bending law m(kappa); the stretch and shear laws of the strains they will be
             # learned from (camera.learn.strain_law_inputs)
-            Xl = X[:, :1] if k == "m" else X
-            if k != "m" and cam["strain_law_inputs"] != "all":
-                Xl = X[:, [OBJ_N_FEATURES.index(e) for e in STRAIN_LAW_INPUTS[cam["strain_law_inputs"]][k]]]
+            cols = [0] if k == "m" else strain_law_columns(cam["strain_law_inputs"], k)
+            Xl = X if cols is None else X[:, cols]
             nominal = stiff * (X[:, col] - ref)
             heldout[k] = learned_or_nominal(Xl, y, nominal, int(cam["choice_degree"]),
                                             int(cam["choice_blocks"]), pooled=k == "m").to_dict()

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from crgpr.learning import features as ft
-from crgpr.learning.features import OBJ_M_FEATURES
+from crgpr.learning.features import OBJ_M_FEATURES, OBJ_N_FEATURES
 from crgpr.physics.rod import free_mask
 
 # central-difference steps [m, m, rad]: small against the segment (strain 1e-5), large against round-off
@@ -46,12 +46,26 @@ M_COLUMNS: tuple[int, int, int] = (OBJ_M_FEATURES.index("nu1"), OBJ_M_FEATURES.i
                                    OBJ_M_FEATURES.index("kappa"))  # the same strains among m's inputs
 
 
+def strain_law_columns(setting: str, law: str) -> list[int] | None:
+    """The columns of the objective n features (``OBJ_N_FEATURES``) a stretch (``law`` n1) or
+    shear (n2) law is learned on under ``camera.learn.strain_law_inputs`` ``setting``; None:
+    every column (``all``)."""
+    if setting == "all":
+        return None
+    return [OBJ_N_FEATURES.index(e) for e in STRAIN_LAW_INPUTS[setting][law]]
+
+
+def _free(P) -> np.ndarray:
+    """Indices of the free coordinates in a flattened (N+1, 3) configuration."""
+    return np.flatnonzero(free_mask(P).astype(bool).ravel())
+
+
 def stiffness_matrix(model, q: np.ndarray) -> np.ndarray:
     """K_ab = d f_a / d q_b (f: the nodal internal forces w_i ds (-H_q) of ``model.internal``) over
     the free coordinates a, b of configuration q (N+1, 3), by central differences (``STEP``)."""
     P = model.params
     q = np.asarray(q, dtype=float)
-    idx = np.flatnonzero(free_mask(P).astype(bool).ravel())
+    idx = _free(P)
     h = np.tile(np.asarray(STEP), P.N + 1)[idx]
     flat = np.repeat(q.reshape(1, -1), 2 * idx.size, axis=0)
     rows = np.arange(idx.size)
@@ -71,28 +85,35 @@ def flutter_rate(model, K: np.ndarray) -> float:
     lumped masses rho A w ds, rho I w ds): max Re sqrt(lambda) over the eigenvalues lambda of
     M^-1 K whose imaginary part exceeds 1e-6 of the largest |lambda| (module docstring); 0 if none."""
     P = model.params
-    idx = np.flatnonzero(free_mask(P).astype(bool).ravel())
+    idx = _free(P)
     mass = (np.array([P.rhoA, P.rhoA, P.rhoI])[None, :] * model.wds[:, None]).ravel()[idx]
     lam = np.linalg.eigvals(K / mass[:, None])
     lam = lam[np.abs(lam.imag) > 1e-6 * np.abs(lam).max()]
     return float(np.max(np.sqrt(lam).real)) if lam.size else 0.0
 
 
-def reciprocity_gap(model, q: np.ndarray) -> float:
-    """The largest reciprocity gap of the objective laws over the segments of configuration q
-    (N+1, 3) (module docstring; ``LAW_STEP`` the strains' central-difference steps)."""
-    table = ft.segment_table(np.asarray(q, dtype=float), model.params.ds)
-    Xn, Xm = (np.array(a) for a in ft.objective_inputs(table))
+def law_jacobian(model, q: np.ndarray) -> np.ndarray:
+    """d(n1, n2, m)/d(nu1, nu2, kappa) of every segment of configuration q (N+1, 3) -> (N, 3, 3),
+    by central differences (``LAW_STEP``; each strain moved in the n rows and in m's rows alike)."""
+    Xn, Xm = (np.array(a) for a in ft.objective_inputs(ft.segment_table(np.asarray(q, dtype=float),
+                                                                          model.params.ds)))
     c = model.components
     J = np.zeros((Xn.shape[0], 3, 3))
-    for j, (h, cn, cm) in enumerate(zip(LAW_STEP, (0, 1, 2), M_COLUMNS, strict=True)):
+    for j, (h, cm) in enumerate(zip(LAW_STEP, M_COLUMNS, strict=True)):
         out = []
         for sign in (1.0, -1.0):
             Yn, Ym = Xn.copy(), Xm.copy()
-            Yn[:, cn] += sign * h
+            Yn[:, j] += sign * h
             Ym[:, cm] += sign * h
             out.append(np.stack([c["obj_n1"](Yn), c["obj_n2"](Yn), c["obj_m"](Ym)], axis=-1))
         J[:, :, j] = (out[0] - out[1]) / (2.0 * h)
+    return J
+
+
+def reciprocity_gap(model, q: np.ndarray) -> float:
+    """The largest reciprocity gap of the objective laws over the segments of configuration q
+    (N+1, 3) (module docstring; ``law_jacobian``)."""
+    J = law_jacobian(model, q)
     gap = 0.0
     for i, j in ((0, 1), (0, 2), (1, 2)):
         scale = np.sqrt(np.abs(J[:, i, i] * J[:, j, j]))
