@@ -246,7 +246,7 @@ def record_rmse_theta(components: dict[str, Any], features: str, params: RodPara
         model = LearnedRod(components, features, params, center, c)
         try:
             tr = rollout(model, math.nan, st, "damping refinement", inputs=inputs, ports=ports,
-                         initial=(q0, p0, float(t[0])))
+                         initial=(q0, p0, float(t[0])), book_energy=False)
         except SimulationDiverged:
             return math.inf
         return float(np.sqrt(np.mean((free_angles_at(tr, t) - theta[:, 1:]) ** 2)))

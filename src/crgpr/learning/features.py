@@ -238,12 +238,16 @@ def objective_forces(n1: np.ndarray, n2: np.ndarray, m: np.ndarray, table: np.nd
     lab frame (q = n1 cos - n2 sin, n1 sin + n2 cos) and ``theta_forces_objective``'s moment
     balance, in one compiled pass (tests/test_gradient_models.py checks the two agree). ``wds``
     (N+1,): the nodes' lengths w_i ds (``node_weights`` times ds); ``ds`` the segment length."""
-    shape = np.broadcast_shapes(n1.shape, n2.shape, m.shape, table.shape[:-1])
+    shape = table.shape[:-1]
+    if not n1.shape == n2.shape == m.shape == shape:  # the rollout's case: no broadcasting
+        shape = np.broadcast_shapes(n1.shape, n2.shape, m.shape, shape)
     n_col = table.shape[-1]
-    tab = np.ascontiguousarray(np.broadcast_to(table, (*shape, n_col)).reshape(-1, shape[-1], n_col))
+    tab = table if table.shape[:-1] == shape else np.broadcast_to(table, (*shape, n_col))
+    tab = np.ascontiguousarray(tab.reshape(-1, shape[-1], n_col))
 
     def rows(a: np.ndarray) -> np.ndarray:
-        return np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1, shape[-1]), dtype=float)
+        a = a if a.shape == shape else np.broadcast_to(a, shape)
+        return np.ascontiguousarray(a.reshape(-1, shape[-1]), dtype=float)
 
     out = np.empty((tab.shape[0], shape[-1] + 1, 3))
     _objective_forces(rows(n1), rows(n2), rows(m), tab, np.asarray(wds, dtype=float), float(ds), out)

@@ -198,7 +198,8 @@ class LearnedRod:
 
 def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: str = "rollout",
             n_batch: int | None = None, inputs: Inputs | None = None, ports: Ports | None = None,
-            initial: tuple[np.ndarray, np.ndarray, float] | None = None) -> Trajectory:
+            initial: tuple[np.ndarray, np.ndarray, float] | None = None, book_energy: bool = True
+            ) -> Trajectory:
     """Integrate the learned dPHS from the straight rod at rest (same scheme and dt as ground truth).
 
     ``n_batch``: integrate that many copies at once (a model whose components carry a leading
@@ -207,7 +208,9 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
     model's gravity per unit length at every step time); their work is ``input_work``.
     ``initial`` = (q0, p0, t0): start from that state (p per length) at time t0 [s] instead of
     the straight rod at rest (the inputs are then read from t0 on, and t starts at t0); with
-    ``n_batch``, q0 and p0 may carry the batch axis (one start per rod).
+    ``n_batch``, q0 and p0 may carry the batch axis (one start per rod). ``book_energy`` False:
+    the states only (``run_hamiltonian``: no force work, no dissipation booked for a linear
+    momentum map), for fits that compare states.
     """
     P = model.params
     if initial is None:
@@ -230,7 +233,7 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
                           free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
                           model.wds, what, velocity_slope=model.velocity_slope, port=port,
                           bending=model.bending_flow(0.5 * settings.dt), inverse_mass=model.inv_mass,
-                          momentum_maps=model.maps)
+                          momentum_maps=model.maps, book_energy=book_energy)
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
                       u=None if inputs is None else u[::settings.record_every], ports=ports,

@@ -79,7 +79,8 @@ class NominalLaw:
     def __call__(self, X: np.ndarray) -> np.ndarray:
         if self.col is None:
             return self.stiffness * np.asarray(X, dtype=float)
-        return self.stiffness * (np.asarray(X)[..., self.col] - self.ref)
+        x = np.asarray(X)[..., self.col]
+        return self.stiffness * (x - self.ref if self.ref else x)
 
     def slope(self, X: np.ndarray) -> np.ndarray:
         """dH_p/dp of a momentum map (constant)."""
@@ -145,12 +146,12 @@ class SliceTables:
         J = self.slices.size
         if x.shape[-1] != J:
             raise ValueError(f"expected values at the {J} slices along the last axis, got {x.shape}")
-        rows = np.ascontiguousarray(np.moveaxis(x, -1, 0).reshape(J, -1))
+        rows = np.ascontiguousarray(x.reshape(-1, J).T)  # (J, rows): slice by slice
         out = np.empty_like(rows)
         interp_uniform(rows, self.grid[0], self.h, self.values, False, out)
-        out = np.moveaxis(out.reshape((J, *x.shape[:-1])), 0, -1)
-        off = (x < self.grid[0]) | (x > self.grid[-1])
-        if off.any():
+        out = out.T.reshape(x.shape)
+        if x.size and (x.min() < self.grid[0] or x.max() > self.grid[-1]):
+            off = (x < self.grid[0]) | (x > self.grid[-1])
             s = np.broadcast_to(self.slices, x.shape)
             out[off] = self.mean(np.stack([x[off], s[off]], -1))
         return out

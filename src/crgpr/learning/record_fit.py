@@ -225,7 +225,7 @@ def record_residuals(model_for: Callable[[np.ndarray, float], LearnedRod], arr: 
             try:
                 tr = rollout(model_for(A[rows, j0 + nd:], float(cv)), math.nan, st, "record fit",
                              n_batch=rows.size, inputs=inputs, ports=ports,
-                             initial=(q0[rows], p0[rows], float(t[0])))
+                             initial=(q0[rows], p0[rows], float(t[0])), book_energy=False)
             except SimulationDiverged:
                 return None
             out[rows] = (free_angles_at(tr, t) - theta[:, None]).transpose(1, 0, 2).reshape(rows.size, -1)

@@ -13,9 +13,11 @@ offered with v; it shifts the law's curvature inputs (kappa and its neighbours' 
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 # (center c [1/m], kappa scale kappa_s [1/m], a_k, b_j, c_j [1/m])
 Warp = tuple[float, float, np.ndarray, np.ndarray, np.ndarray]
@@ -31,12 +33,40 @@ def warp_factor(kappa: np.ndarray, center: float, scale: float, coefficients: np
     covered range the warp stays at its edge value: the polynomial is not extrapolated);
     ``coefficients`` (K,) or, for a batch of rods, (B, K) against kappa (B, ...)."""
     a = np.asarray(coefficients, dtype=float)
-    u2 = _u2(kappa, center, scale)
-    w = np.ones_like(u2)
-    for k in range(a.shape[-1]):
-        ak = a[..., k] if a.ndim == 1 else a[:, k].reshape((-1,) + (1,) * (u2.ndim - 1))
-        w = w + ak * u2**k
-    return w
+    k = np.asarray(kappa, dtype=float)
+    if a.shape[-1] == 0:
+        return np.ones_like(k)
+    if a.ndim == 1 or a.shape[0] == 1:  # one warp for every kappa
+        a, shape = a.reshape(1, -1), k.shape
+    else:  # member b's warp against kappa[b]
+        shape = a.shape[:1] + k.shape[1:]
+    rows = (k if k.shape == shape else np.broadcast_to(k, shape)).reshape(a.shape[0], -1)
+    out = np.empty(rows.shape)
+    _warp_rows(np.ascontiguousarray(rows), float(center), float(scale), np.ascontiguousarray(a), out)
+    return out.reshape(shape)
+
+
+@njit(cache=True)
+def _warp_rows(kappa, center, scale, a, out):  # pragma: no cover - compiled
+    """``warp_factor`` of row b of ``kappa`` (B, n) with coefficients a[b] (B, K), term by term
+    as 1 + a_0 + a_1 u^2 + a_2 (u^2)^2 + a_3 pow(u^2, 3) + ... (a rollout's hot path)."""
+    K = a.shape[1]
+    for b in range(kappa.shape[0]):
+        for i in range(kappa.shape[1]):
+            t = (kappa[b, i] - center) / scale
+            u2 = t * t
+            if u2 > 1.0:
+                u2 = 1.0
+            w = 1.0 + a[b, 0]
+            for j in range(1, K):
+                if j == 1:
+                    pj = u2
+                elif j == 2:
+                    pj = u2 * u2
+                else:
+                    pj = math.pow(u2, float(j))  # C pow, as numpy's u2**j
+                w = w + a[b, j] * pj
+            out[b, i] = w
 
 
 def _legendre(s_rel: np.ndarray, S: int, first: int = 1) -> np.ndarray:

@@ -347,6 +347,7 @@ def run_hamiltonian(
     bending: tuple[float, float, np.ndarray] | None = None,
     inverse_mass: np.ndarray | None = None,
     momentum_maps: MomentumMaps | None = None,
+    book_energy: bool = True,
 ) -> Integration:
     """``run_verlet`` in (q, p) for a learned H_z (eq. (17), Sec. III-B step 4).
 
@@ -380,6 +381,8 @@ def run_hamiltonian(
     affine H_p).
     ``momentum_maps`` (``physics.momentum_maps.MomentumMaps``, the maps ``velocity`` evaluates:
     each linear or a table): the same generic damping half-step in one compiled pass.
+    ``book_energy`` False (a fit that reads only the states): no ``force_work``, and with
+    ``inverse_mass`` no ``dissipated`` either (zeros); the states are the same.
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
@@ -417,29 +420,32 @@ def run_hamiltonian(
         return p1, lost
 
     if inverse_mass is not None:
-        step = _linear_damping(inverse_mass, free, zeta, h, wds, bending)
+        step = _linear_damping(inverse_mass, free, zeta, h, wds, bending, book_energy)
     elif momentum_maps is not None:
         step = momentum_maps.damping(free, zeta, h, wds, None if bending is None else bending[2])
     else:
         step = damp
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=step, length=length, what=what, port=port, port_weight=wds,
-                      book_force=True)
+                      book_force=book_energy)
 
 
 def _linear_damping(inverse_mass: np.ndarray, free: np.ndarray, zeta: float, h: float, wds: np.ndarray,
-                    bending: tuple[float, float, np.ndarray] | None
-                    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """``run_hamiltonian``'s damping half-step for a linear momentum map (its ``inverse_mass``)."""
+                    bending: tuple[float, float, np.ndarray] | None, book_energy: bool = True
+                    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | float]]:
+    """``run_hamiltonian``'s damping half-step for a linear momentum map (its ``inverse_mass``);
+    without ``book_energy`` the energy it removes is not computed (returned as 0)."""
     m = np.broadcast_to(np.asarray(inverse_mass, dtype=float), free.shape) * free
     decay = np.exp(-zeta * m * h)  # the exact zeta flow (1 on the clamped entries)
     flow_theta = None if bending is None else bending[2] * decay[:, 2]  # P after the zeta flow
     half_w = 0.5 * wds[:, None] * m
 
-    def damp(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def damp(p: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
         p1 = p * decay
         if flow_theta is not None:
             p1[..., 2] = p[..., 2] @ flow_theta.T
+        if not book_energy:
+            return p1, 0.0
         return p1, (half_w * (p * p - p1 * p1)).sum(axis=(-2, -1))
 
     return damp
