@@ -45,6 +45,38 @@ def test_warp_is_even_about_its_centre_and_constant_beyond_the_covered_range(cen
         assert math.isclose(w_plus[0], 1.0 + sum(a), rel_tol=1e-12, abs_tol=1e-12)
 
 
+@settings(max_examples=60, deadline=None)
+@given(a=st.lists(st.lists(finite, min_size=5, max_size=5), min_size=1, max_size=3),
+       terms=st.integers(1, 5), seed=st.integers(0, 2**16))
+def test_the_compiled_warp_is_its_formula_term_by_term(a, terms, seed):
+    """warp_factor (a compiled loop on the rollouts' path) equals 1 + sum_k a_k u^(2k) written
+    with arrays, bit for bit, for one warp and for one warp per batch member."""
+    A = np.array(a)[:, :terms]
+    kappa = np.random.default_rng(seed).normal(0.0, 40.0, (A.shape[0], 3, 7))
+    u2 = np.minimum(((kappa - 1.5) / 30.0) ** 2, 1.0)
+    batched, single = np.ones_like(u2), np.ones_like(u2)
+    for k in range(terms):  # 1, then each term added in turn
+        batched = batched + A[:, k].reshape(-1, 1, 1) * u2**k
+        single = single + A[0, k] * u2**k
+    assert np.array_equal(warp_factor(kappa, 1.5, 30.0, A), batched)
+    assert np.array_equal(warp_factor(kappa, 1.5, 30.0, A[0]), single)
+
+
+def test_a_states_only_rollout_has_the_same_states():
+    """The record fit's rollouts book no energies (book_energy=False); the states are the
+    rollout's own, bit for bit."""
+    P = rod_params(load_config("tests/smoke_config.yaml"))
+    comps = {name: NominalLaw(law, P) for law, name in NOMINAL_LAWS.items()}
+    comps["obj_m"] = BendingWarp(comps["obj_m"], 0.0, 30.0, np.array([0.1, -0.2, 0.05]))
+    model = LearnedRod(comps, "objective", P, None, 1e-5)  # with a bending damping
+    st_ = SimSettings(dt=1e-4, t_end=0.05, record_every=10, scheme="variational")
+    full = rollout(model, 85.0, st_)
+    states = rollout(model, 85.0, st_, book_energy=False)
+    assert np.array_equal(full.q, states.q) and np.array_equal(full.p, states.p)
+    assert full.force_work is not None and states.force_work is None
+    assert np.all(full.dissipated[1:] > 0) and np.all(states.dissipated == 0)
+
+
 def test_warp_keeps_the_laws_zero_and_warps_each_batch_member_by_its_own_row():
     P = rod_params(load_config("tests/smoke_config.yaml"))
     law = NominalLaw("m", P)
