@@ -23,7 +23,7 @@ from crgpr.discovery.effects import EFFECT_NAMES, EFFECTS
 from crgpr.discovery.residual import residual
 from crgpr.discovery.synthetic import find_case, make_measured
 from crgpr.io import output_lock, write_parquet
-from crgpr.physics.dissipation import kelvin_voigt_propagator
+from crgpr.physics.dissipation import kelvin_voigt_flow
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, node_weights
 from crgpr.physics.simulate import energy, simulate, velocities
@@ -149,8 +149,8 @@ def test_kelvin_voigt_flow_is_exact_passive_and_stable_at_any_step():
     pr = paper_rod().replace(internal_damping=1e-2)
     _, m_r = masses(pr)
     free = free_mask(pr)[:, 2]
-    P1 = kelvin_voigt_propagator(pr.internal_damping, pr.ds, m_r, free, 1e-5)
-    P2 = kelvin_voigt_propagator(pr.internal_damping, pr.ds, m_r, free, 2e-5)
+    P1 = kelvin_voigt_flow(pr.internal_damping, pr.ds, m_r, 0.0, free, 1e-5)[0]
+    P2 = kelvin_voigt_flow(pr.internal_damping, pr.ds, m_r, 0.0, free, 2e-5)[0]
     np.testing.assert_allclose(P1 @ P1, P2, atol=1e-10)
     Ms = np.sqrt(m_r)
     sym = Ms[:, None] * P1 / Ms[None, :]

@@ -26,7 +26,7 @@ from crgpr.learning.damping import (
 from crgpr.learning.learned import LearnedRod, learned_energy, rollout
 from crgpr.learning.nominal import NominalLaw
 from crgpr.learning.oracle import oracle_components
-from crgpr.physics.dissipation import bending_power, kelvin_voigt_propagator
+from crgpr.physics.dissipation import bending_power, kelvin_voigt_flow
 from crgpr.physics.params import SimSettings
 from crgpr.physics.ports import Ports
 from crgpr.physics.rod import free_mask, node_weights
@@ -180,7 +180,7 @@ def test_the_damping_flow_only_removes_kinetic_energy(p, c, h):
     P = paper_rod(N=8)
     m_r = P.rhoI * node_weights(P.N) * P.ds
     free = free_mask(P)[:, 2]
-    Pm = kelvin_voigt_propagator(c, P.ds, m_r, free, h) if c > 0 else np.diag(free)
+    Pm = kelvin_voigt_flow(c, P.ds, m_r, 0.0, free, h)[0] if c > 0 else np.diag(free)
     p = p * free
     ke = lambda x: 0.5 * np.sum(m_r * (x / P.rhoI) ** 2)  # noqa: E731
     assert ke(Pm @ p) <= ke(p) * (1 + 1e-12) + 1e-300
@@ -215,23 +215,28 @@ def _signal_inputs():
 @pytest.mark.parametrize("actuated", [False, True])
 def test_energy_balance_of_a_learned_viscoelastic_rollout(actuated):
     """H(T) - H(0) = -dissipated + port work for the learned rod with its learned damping: the
-    integrator books the energy the zeta flow and the bending damping's exact flow remove, and the
-    balance closes to round-off (the exact laws: an affine H_p). The bending damping's share is
-    real: the zeta part of the dissipation rate alone falls well short of the booked energy; and
-    the rate's trapezoid over the records falls short too (the overdamped short-wave modes are
-    faster than the records), which is why the balance books the integrator's flows."""
+    integrator books the energy the zeta flow and the rotational Kelvin-Voigt flow dissipate
+    (exactly, for the exact laws: an affine H_p), and the balance closes to the scheme's O(dt^2)
+    energy error: small, and about four times smaller at half the step. The bending damping's
+    share is real: the zeta part of the dissipation rate alone falls well short of the booked
+    energy; and the booking is the rate's integral: the rate's trapezoid over the records is the
+    booked energy to 1e-3."""
     P = paper_rod(N=10)
     model = exact_rod(P, damping=C_KV)
     kw = {"inputs": _signal_inputs(), "ports": Ports(0.005)} if actuated else {}
     roll = rollout(model, 125.0, GRID, **kw)
     en = learned_energy(model, roll, GRID.dt)
     diss = en["dissipated"].to_numpy()
-    assert np.abs(en["balance_residual"]).max() < 1e-6 * diss[-1]
+    residual = np.abs(en["balance_residual"]).max()
+    assert residual < 1e-3 * diss[-1]
+    fine = replace(GRID, dt=GRID.dt / 2, record_every=2 * GRID.record_every)
+    half = np.abs(learned_energy(model, rollout(model, 125.0, fine, **kw), fine.dt)["balance_residual"]).max()
+    assert half < residual / 3
     if actuated:
         assert np.abs(roll.input_work).max() > 0.1 * diss[-1]  # the inputs do work
     rate = en["dissipation_rate"].to_numpy()
     trapezoid = float(np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(roll.t)))
-    assert 0.5 * diss[-1] < trapezoid < 0.99 * diss[-1]
+    assert abs(trapezoid - diss[-1]) < 1e-3 * diss[-1]
     zeta_rate = exact_rod(P).dissipation_rate(roll.p)  # the same trajectory, R = zeta I only
     zeta_part = float(np.sum(0.5 * (zeta_rate[1:] + zeta_rate[:-1]) * np.diff(roll.t)))
     assert zeta_part < 0.9 * trapezoid
@@ -267,7 +272,7 @@ def learned_smoke(tmp_path_factory):
 def test_learn_keeps_a_viscoelastic_rods_damping_and_sizes_it_on_the_record(learned_smoke):
     """The damping is kept by its held-out blocks; the record fit (learning/record_fit.py) sizes
     c by output error from the recorded start: the rod with the fitted c reproduces its record
-    better than with the regression's c, and c is closer to the truth."""
+    better than with the regression's c, and both are within 10 % of the truth."""
     _, out = learned_smoke
     man = out["viscoelastic"][0]
     fit, rf = man["bending_damping"], man["record_fit"]
@@ -275,12 +280,12 @@ def test_learn_keeps_a_viscoelastic_rods_damping_and_sizes_it_on_the_record(lear
     assert rf["damping_before"] == fit["c_fit"] and fit["c_refined"] is None
     assert fit["heldout_log_ratio"] > 1.96 * fit["heldout_log_ratio_se"]
     assert rf["rmse_start_only"] < rf["rmse_learned"]
-    assert abs(math.log(fit["coefficient"] / C_KV)) < abs(math.log(fit["c_fit"] / C_KV))
+    assert abs(math.log(fit["coefficient"] / C_KV)) < 0.1 and abs(math.log(fit["c_fit"] / C_KV)) < 0.1
 
 
 def test_without_the_record_fit_the_damping_is_refined_by_the_rollout(tmp_path):
-    """``record_fit: none``: the kept c is refined by the golden-section rollout search instead,
-    towards the truth."""
+    """``record_fit: none``: the kept c is refined by the golden-section rollout search instead;
+    it lowers the rollout's error, and c stays within 10 % of the truth."""
     from crgpr.commands.learn import learn
     from crgpr.config import load_config, rod_params
     from crgpr.io import write_parquet
@@ -295,7 +300,7 @@ def test_without_the_record_fit_the_damping_is_refined_by_the_rollout(tmp_path):
     fit = man["bending_damping"]
     assert man["record_fit"] is None and fit["kept"] and fit["coefficient"] == fit["c_refined"] > 0
     assert fit["refine_rmse_theta"] < fit["fit_rmse_theta"]
-    assert abs(math.log(fit["c_refined"] / C_KV)) < abs(math.log(fit["c_fit"] / C_KV))
+    assert abs(math.log(fit["c_refined"] / C_KV)) < 0.1 and abs(math.log(fit["c_fit"] / C_KV)) < 0.1
 
 
 def test_learn_drops_the_damping_of_an_elastic_rod(learned_smoke):

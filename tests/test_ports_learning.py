@@ -234,7 +234,7 @@ def test_batched_members_under_inputs_are_each_the_single_rollout(actuated):
         def velocity_slope(self, p):
             return np.stack([r.velocity_slope(p[i]) for i, r in enumerate(self.rods)])
 
-        def bending_flow(self, h):
+        def bending(self):
             return None  # no learned bending damping in either member
 
     runs = rollout_members(Pair, q0, np.array([0, 1]), params, st, "pair", inputs=inputs, ports=ports)

@@ -18,13 +18,12 @@ import numpy as np
 
 from crgpr.control.policy import Policy, tip_pose, tip_pose_rate
 from crgpr.learning.learned import LearnedRod, rollout
-from crgpr.physics.dissipation import kelvin_voigt_propagator
 from crgpr.physics.integrator import run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
 from crgpr.physics.rod import free_mask, masses
 from crgpr.physics.signals import SignalInputs
-from crgpr.physics.simulate import dissipation_coefficients, rod_kernel_args
+from crgpr.physics.simulate import dissipation_coefficients, kelvin_voigt_kick, rod_kernel_args
 
 
 @dataclass(frozen=True)
@@ -52,7 +51,7 @@ def simulator_plant(params: RodParams, settings: SimSettings, ports: Ports, thet
     rod_args = rod_kernel_args(params, float(theta_base))
     lam_t, lam_r, k_quad = dissipation_coefficients(params)
     free = free_mask(params)
-    kv = kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free[:, 2], 0.5 * settings.dt)
+    kv = kelvin_voigt_kick(params, m_r, lam_r, settings.dt)
     n = settings.n_steps
 
     def step(q, v, u):

@@ -20,11 +20,10 @@ import pandas as pd
 
 from crgpr.discovery.effects import effect_params
 from crgpr.measured.kinematics import marker_positions
-from crgpr.physics.dissipation import kelvin_voigt_propagator
 from crgpr.physics.integrator import run_generic, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.rod import free_mask, internal_forces, masses, segment_EI, straight_rod
-from crgpr.physics.simulate import dissipation_coefficients, rod_kernel_args, simulate
+from crgpr.physics.simulate import dissipation_coefficients, kelvin_voigt_kick, rod_kernel_args, simulate
 
 
 def aligned_settings(params: RodParams, dt_max: float, period: float, n_samples: int,
@@ -75,7 +74,7 @@ def simulate_truth(params: RodParams, theta0_deg: float, settings: SimSettings,
     m_t, m_r = masses(params)
     lam_t, lam_r, k_quad = dissipation_coefficients(params)
     free = free_mask(params)
-    kv = kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free[:, 2], 0.5 * settings.dt)
+    kv = kelvin_voigt_kick(params, m_r, lam_r, settings.dt)
     if "stiffness_defect" in disturbance:
         d = disturbance["stiffness_defect"]
         args = list(rod_kernel_args(params, float(q0[0, 2])))

@@ -52,7 +52,7 @@ from crgpr.io import write_parquet
 from crgpr.learning import features as ft
 from crgpr.learning.gradient_models import MOMENTUM_MODELS
 from crgpr.learning.nominal import NominalLaw
-from crgpr.physics.dissipation import bending_power, kelvin_voigt_propagator
+from crgpr.physics.dissipation import bending_power
 from crgpr.physics.integrator import SimulationDiverged, rod_length, run_hamiltonian
 from crgpr.physics.momentum_maps import MomentumMaps
 from crgpr.physics.params import RodParams, SimSettings
@@ -172,14 +172,14 @@ class LearnedRod:
             out[..., k] = self.hp[k].slope(p[..., k])
         return out
 
-    def bending_flow(self, h: float) -> tuple[float, float, np.ndarray] | None:
-        """``run_hamiltonian``'s ``bending`` argument for damping half-steps of length h: (c, ds,
-        the exact flow over h for H_p_theta = p_theta / (rho I)); None without learned damping."""
+    def bending(self) -> tuple[float, float, float] | None:
+        """``run_hamiltonian``'s ``bending`` argument: (c, ds, mu), the learned Kelvin-Voigt c
+        for H_p_theta = mu p_theta (mu the rotational map's slope at rest); None without
+        learned damping."""
         if self.damping == 0.0:
             return None
-        P = self.params
-        m_r = P.rhoI * self.wds
-        return self.damping, P.ds, kelvin_voigt_propagator(self.damping, P.ds, m_r, free_mask(P)[:, 2], h)
+        mu = float(np.mean(self.velocity_slope(np.zeros((self.params.N + 1, 3)))[..., 2]))
+        return self.damping, self.params.ds, mu
 
     def dissipation_rate(self, p: np.ndarray) -> np.ndarray:
         """E = H_z^T R H_z (...) [W] at momenta p (..., N+1, 3): zeta sum_i w_i ds |H_p,i|^2 over the
@@ -232,7 +232,7 @@ def rollout(model: LearnedRod, theta0_deg: float, settings: SimSettings, what: s
     out = run_hamiltonian(q0, np.zeros_like(q0) if p0 is None else p0, model.force, model.velocity,
                           free_mask(P), P.zeta, settings.dt, settings.n_steps, settings.record_every,
                           model.wds, what, velocity_slope=model.velocity_slope, port=port,
-                          bending=model.bending_flow(0.5 * settings.dt), inverse_mass=model.inv_mass,
+                          bending=model.bending(), inverse_mass=model.inv_mass,
                           momentum_maps=model.maps, book_energy=book_energy)
     return Trajectory(float(theta0_deg), out.t + t0, out.q, out.v, P, out.dissipated,
                       input_work=out.input_work,
@@ -418,7 +418,7 @@ def rollout_members(model_for: Callable[[np.ndarray], LearnedRod], q0: np.ndarra
         try:
             out = run_hamiltonian(q, p, rod.force, rod.velocity, free_mask(P), P.zeta, dt, n_left, every,
                                   rod.wds, what, velocity_slope=rod.velocity_slope, length=length,
-                                  port=port_from(k0), bending=rod.bending_flow(0.5 * dt))
+                                  port=port_from(k0), bending=rod.bending())
         except SimulationDiverged as exc:
             part = exc.partial
             if exc.members is None or len(exc.members) == 0 or part is None or len(part.t) == 0:

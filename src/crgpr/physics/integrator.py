@@ -13,13 +13,18 @@ and the learned rod of eq. (17), Sec. III-B step 4) this is the symplectic Storm
 (velocity Verlet) scheme the paper uses; the dissipation R is applied by its exact flow, so it
 can only remove energy and is stable for any damping. The scheme is symmetric and second
 order; the energy removed by D is accumulated as the dissipated energy.
-The Kelvin-Voigt bending damping of the missing-physics library (m += c dkappa/dt, a stiff
-linear coupling of neighbouring angular rates) is part of D: its exact linear flow
-omega <- P(dt/2) omega (``kelvin_voigt_propagator``) follows the diagonal damping in the same
-half-step; both are exact flows of commuting linear ODEs (the rotational zeta rate is the same
-at every node), so D stays exact, passive and unconditionally stable. The dissipative flows
-and their tangents live in ``physics.dissipation``; ``run_hamiltonian`` applies a learned
-bending damping (``learning.damping``) by the same Kelvin-Voigt flow.
+The Kelvin-Voigt bending damping (m += c dkappa/dt, ``rod.material.kelvin_voigt``, the
+missing-physics library's internal damping, a learned bending damping) couples neighbouring
+angular rates with rates c / (rho I ds^2) far above 1 / dt; split around the kick as above it
+makes the scheme first order (its overdamped short modes answer the kick's impulse instead of
+the balance of the couples: ``benchmarks/kv_step_convergence.py``). Where it is present the
+rotational entries therefore take no separate damping half-step: each rotational half-kick is
+the exact flow of d omega/dt = a - A omega with the force a frozen over dt/2 and A the
+Kelvin-Voigt and zeta rates together (``dissipation.kelvin_voigt_flow``), which is the kick when
+A = 0, symmetric, second order, passive and unconditionally stable; the energy it dissipates
+is booked exactly (the frozen couples' work less the kinetic-energy gain). The translational
+entries keep the split above. The dissipative flows and their tangents live in
+``physics.dissipation``.
 
 One implementation, ``run_verlet`` (the generic form: any F(q, p), V(q, p); the black-box
 baseline, which has no p/m structure, uses it directly), with two thin forms:
@@ -50,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crgpr.physics.dissipation import _damp_exponentials, _damp_factors, _kv_damp
+from crgpr.physics.dissipation import _damp_exponentials, _damp_factors, kelvin_voigt_flow, kv_flow_step
 from crgpr.physics.kernels import MAX_SPEED, _rod_kernel
 from crgpr.physics.momentum_maps import MomentumMaps
 from crgpr.physics.params import SCHEMES
@@ -131,7 +136,8 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     """Integrate the analytic rod (compiled ``run_generic``). ``rod_args`` are the trailing
     arguments of the force kernel; ``grav_force`` the nodal y-force of gravity (-m_i g);
     ``length`` the rod length for the reach bound (default: that of q0); ``kv`` the
-    Kelvin-Voigt flow matrix over dt/2 (``kelvin_voigt_propagator``; None: no internal damping);
+    Kelvin-Voigt rod's rotational half-kick flow over dt/2 (``kelvin_voigt_flow`` with these
+    lam_r; None or an empty stack: no internal damping);
     ``scheme`` the spatial discretisation of the elastic forces (``SCHEMES``: 'variational',
     rod.py; 'collocated' or 'collocated_nodal', collocated.py). ``dq0``, ``dv0`` (m, N+1, 3):
     directions of the initial state whose tangent-linear propagation (the exact derivative of
@@ -147,7 +153,8 @@ def run_rod(q0, v0, free, m_t, m_r, lam_t, lam_r, k_quad, grav_force, rod_args, 
     if scheme != "variational" and (law[0] != 0.0 or law[2] != 0.0 or np.any(rod_args[4])):
         raise ValueError(f"rod.material: the {scheme!r} scheme implements linear laws and a uniform "
                          "rest curvature only; use simulation.scheme: variational for this material")
-    kv = np.zeros((0, 0)) if kv is None else np.ascontiguousarray(kv, dtype=float)
+    n_nodes = np.shape(q0)[0]
+    kv = np.zeros((0, n_nodes, n_nodes)) if kv is None else np.ascontiguousarray(kv, dtype=float)
     n_rec = n_steps // every + 1
     q = np.array(q0, dtype=float, order="C")
     v = np.array(v0, dtype=float, order="C") * free
@@ -199,6 +206,7 @@ def run_verlet(
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
     port_weight: np.ndarray | None = None,
     book_force: bool = False,
+    rot_flow: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray | float]] | None = None,
 ) -> Integration:
     """The Strang-split Stormer-Verlet scheme of the module docstring, generic form.
 
@@ -218,6 +226,10 @@ def run_verlet(
     ``book_force``: also book the work of ``force`` along every drift, h (f(q_n) + f(q_n+1)) .
     dq weighted by ``port_weight`` (``Integration.force_work``; minus the potential energy for a
     conservative force, the learned path energy otherwise).
+    ``rot_flow(x, f)`` (a Kelvin-Voigt rod, module docstring): the rotational half-kick, x the
+    rotational entries of the state (..., N+1) and f those of the force (ports included) ->
+    (x after the exact affine flow over dt/2, energy dissipated); ``damp`` must then leave the
+    rotational entries alone.
     """
     q = np.array(q0, dtype=float)
     p = np.array(p0, dtype=float) * free
@@ -240,11 +252,18 @@ def run_verlet(
     pw = np.ones(q.shape[-2]) if port_weight is None else np.asarray(port_weight, dtype=float)
     pw = pw[:, None] * free
 
-    def kick(q: np.ndarray, p: np.ndarray, fu: np.ndarray, vel0: np.ndarray | None
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def advance(p: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """p after the half-kick by the force g (the rotational entries by ``rot_flow``)."""
+        p1 = p + h * g * ks
+        if rot_flow is not None:
+            p1[..., 2], lost = rot_flow(p[..., 2], g[..., 2])
+            diss[...] += lost
+        return p1
+
+    def kick(q: np.ndarray, p: np.ndarray, fu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """p after a port-carrying kick and the velocity there; adds the port work."""
-        v0 = velocity(q, p) if vel0 is None else vel0
-        p = p + h * (f + fu) * ks
+        v0 = velocity(q, p)
+        p = advance(p, f + fu)
         v1 = velocity(q, p)
         work[...] += h * (pw * fu * 0.5 * (v0 + v1)).sum(axis=(-2, -1))
         return p, v1
@@ -254,10 +273,10 @@ def run_verlet(
         if damp is not None:
             p, e1 = damp(p)
         if fu is None:
-            p = p + h * f * ks
+            p = advance(p, f)
             dq = dt * velocity(q, p) * free
         else:
-            p, v1 = kick(q, p, fu, None)
+            p, v1 = kick(q, p, fu)
             dq = dt * v1 * free
         q = q + dq
         f0 = f
@@ -265,10 +284,10 @@ def run_verlet(
         if out_fw is not None:
             fwork += 0.5 * (pw * (f0 + f) * dq).sum(axis=(-2, -1))
         if fu is None:
-            p = p + h * f * ks
+            p = advance(p, f)
         else:
             fu = port(k, q)
-            p, _ = kick(q, p, fu, None)
+            p, _ = kick(q, p, fu)
         if damp is not None:
             p, e2 = damp(p)
             diss += e1 + e2
@@ -309,24 +328,26 @@ def run_generic(
     """``run_verlet`` in positions and velocities with lumped masses m_t, m_r: dq/dt = v,
     m dv/dt = force(q) (including gravity) + port(k, q) (the nodal actuation forces at step k,
     ``run_verlet``), damping by the exact flow of ``run_rod`` (rates lam_t, lam_r, quadratic
-    drag k_quad). Same scheme as ``run_rod``."""
+    drag k_quad; ``kv`` as there: the rotational half-kick flow of a Kelvin-Voigt rod). Same
+    scheme as ``run_rod``."""
     n = q0.shape[0]
     k_quad = np.zeros(n) if k_quad is None else k_quad
     minv = np.stack([1.0 / m_t, 1.0 / m_t, 1.0 / m_r], axis=1) * free
     h = 0.5 * dt
-
-    kvm = None if kv is None or kv.shape[0] == 0 else np.ascontiguousarray(kv, dtype=float)
-    ft, fr = _damp_exponentials(np.asarray(lam_t, dtype=float), np.asarray(lam_r, dtype=float), h)
+    use_kv = kv is not None and kv.shape[0] > 0
+    lam_r = np.asarray(lam_r, dtype=float) * (0.0 if use_kv else 1.0)  # then in the flow
+    ft, fr = _damp_exponentials(np.asarray(lam_t, dtype=float), lam_r, h)
 
     def damp(v: np.ndarray) -> tuple[np.ndarray, float]:
         v = np.ascontiguousarray(v)
-        lost = _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
-        if kvm is not None:
-            lost += _kv_damp(v, m_r, kvm)
-        return v, lost
+        return v, _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
+
+    def rot_flow(w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
+        return kv_flow_step(kv, w, f * minv[:, 2], m_r)
 
     return run_verlet(q0, v0, lambda q, v: force(q), lambda q, v: v, free, dt, n_steps, every,
-                      damp=damp, kick_scale=minv, length=length, what=what, port=port)
+                      damp=damp, kick_scale=minv, length=length, what=what, port=port,
+                      rot_flow=rot_flow if use_kv else None)
 
 
 def run_hamiltonian(
@@ -344,7 +365,7 @@ def run_hamiltonian(
     velocity_slope: Callable[[np.ndarray], np.ndarray] | None = None,
     length: float | None = None,
     port: Callable[[int, np.ndarray], np.ndarray] | None = None,
-    bending: tuple[float, float, np.ndarray] | None = None,
+    bending: tuple[float, float, float] | None = None,
     inverse_mass: np.ndarray | None = None,
     momentum_maps: MomentumMaps | None = None,
     book_energy: bool = True,
@@ -367,16 +388,16 @@ def run_hamiltonian(
     ``force`` and ``velocity`` do (several initial states, or a LearnedRod of posterior
     samples); ``dissipated`` is then per member (n_rec, ...). ``port(k, q)``: G(z) u per unit
     length at step k (``physics.ports``); its work (weighted by ``wds``) is ``input_work``.
-    ``bending`` = (c, ds, P): a learned Kelvin-Voigt bending damping m_d = c dkappa/dt
-    (``physics.dissipation``), applied after the zeta flow in each damping half-step as
-    p_theta <- P p_theta, P = ``kelvin_voigt_propagator`` over dt/2 (exact for H_p_theta =
-    p_theta / (rho I), a contraction in its kinetic energy); ``dissipated`` adds the kinetic
-    energy it removes, the integral of H_p_theta dp_theta along the flow (trapezoid in p: exact
-    for an affine H_p, so the same as ``run_rod``'s booking for the analytic one). (c and ds
-    are for the caller's power, ``dissipation.bending_power``.)
+    ``bending`` = (c, ds, mu): a learned Kelvin-Voigt bending damping m_d = c dkappa/dt
+    (``physics.dissipation``) for the rotational momentum map H_p_theta = mu p_theta (a learned
+    table map is taken at its slope at rest there): the rotational half-kicks and their zeta
+    damping are then the exact affine flow (``kelvin_voigt_flow`` over dt/2, lumped rotational
+    masses w_i ds / mu, rates zeta mu), p_theta <- P p_theta + Phi f_theta, and ``dissipated``
+    adds the energy it removes (``dissipation.kv_flow_step``); the other damping half-steps
+    leave p_theta alone. (c and ds are for the caller's power, ``dissipation.bending_power``.)
     ``inverse_mass`` (3,): the momentum map is linear, H_p = inverse_mass * p (``velocity`` must
     be that map); each damping half-step is then the fixed linear map it is exactly (the zeta
-    flow p <- exp(-zeta inverse_mass h) p, then P), precomputed, and the energy it removes is the
+    flow p <- exp(-zeta inverse_mass h) p), precomputed, and the energy it removes is the
     drop of the kinetic energy sum_i w_i ds inverse_mass p^2 / 2 (what the trapezoid books for an
     affine H_p).
     ``momentum_maps`` (``physics.momentum_maps.MomentumMaps``, the maps ``velocity`` evaluates:
@@ -386,6 +407,16 @@ def run_hamiltonian(
     """
     wds = np.ones(q0.shape[-2]) if wds is None else np.asarray(wds, dtype=float)
     h = 0.5 * dt
+    rot_flow = None
+    damped = free
+    if bending is not None and bending[0] > 0:
+        c, ds, mu = bending
+        m_rot = wds * mu
+        flow = kelvin_voigt_flow(c, ds, wds / mu, np.full(wds.shape, zeta * mu), free[:, 2], h)
+        damped = free * np.array([1.0, 1.0, 0.0])  # p_theta: damped in the rotational flow
+
+        def rot_flow(x: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
+            return kv_flow_step(flow, x, g, m_rot, book_energy)
 
     def slope(p: np.ndarray) -> np.ndarray:
         if velocity_slope is not None:
@@ -401,49 +432,37 @@ def run_hamiltonian(
         sl = slope(p) * zeta
         small = np.abs(sl * h) < 1e-12
         fac = np.where(small, zeta * h, -np.expm1(-sl * h) / np.where(small, 1.0, sl) * zeta)
-        dp = fac * v0 * free
+        dp = fac * v0 * damped
         p1 = p - dp
         v1 = velocity(p1)
         # the energy the zeta flow removes, int H_p . dp along it (trapezoid in p: exact for an affine H_p)
         lost = 0.5 * (wds[:, None] * (v0 + v1) * dp).sum(axis=(-2, -1))
-        if bending is not None:
-            P = bending[2]
-            pb = p1.copy()
-            pb[..., 2] = p1[..., 2] @ P.T
-            vb = velocity(pb)
-            # the kinetic energy removed, int H_p . dp along the flow (trapezoid in p: exact for
-            # an affine H_p, whatever the stiffness of the flow)
-            lost = lost - 0.5 * (wds * free[:, 2] * (v1[..., 2] + vb[..., 2])
-                                 * (pb[..., 2] - p1[..., 2])).sum(axis=-1)
-            p1, v1 = pb, vb
         last[:] = [p1, v1]
         return p1, lost
 
     if inverse_mass is not None:
-        step = _linear_damping(inverse_mass, free, zeta, h, wds, bending, book_energy)
+        step = _linear_damping(inverse_mass, damped, zeta, h, wds, book_energy)
     elif momentum_maps is not None:
-        step = momentum_maps.damping(free, zeta, h, wds, None if bending is None else bending[2])
+        step = momentum_maps.damping(damped, zeta, h, wds)
     else:
         step = damp
     return run_verlet(q0, p0, lambda q, p: force(q), lambda q, p: velocity(p), free, dt, n_steps,
                       every, damp=step, length=length, what=what, port=port, port_weight=wds,
-                      book_force=book_energy)
+                      book_force=book_energy, rot_flow=rot_flow)
 
 
 def _linear_damping(inverse_mass: np.ndarray, free: np.ndarray, zeta: float, h: float, wds: np.ndarray,
-                    bending: tuple[float, float, np.ndarray] | None, book_energy: bool = True
+                    book_energy: bool = True
                     ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | float]]:
-    """``run_hamiltonian``'s damping half-step for a linear momentum map (its ``inverse_mass``);
-    without ``book_energy`` the energy it removes is not computed (returned as 0)."""
+    """``run_hamiltonian``'s damping half-step for a linear momentum map (its ``inverse_mass``)
+    on the entries ``free`` marks; without ``book_energy`` the energy it removes is not computed
+    (returned as 0)."""
     m = np.broadcast_to(np.asarray(inverse_mass, dtype=float), free.shape) * free
     decay = np.exp(-zeta * m * h)  # the exact zeta flow (1 on the clamped entries)
-    flow_theta = None if bending is None else bending[2] * decay[:, 2]  # P after the zeta flow
     half_w = 0.5 * wds[:, None] * m
 
     def damp(p: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
         p1 = p * decay
-        if flow_theta is not None:
-            p1[..., 2] = p[..., 2] @ flow_theta.T
         if not book_energy:
             return p1, 0.0
         return p1, (half_w * (p * p - p1 * p1)).sum(axis=(-2, -1))

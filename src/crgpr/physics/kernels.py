@@ -19,8 +19,8 @@ from crgpr.physics.dissipation import (
     _damp_exponentials,
     _damp_factors,
     _damp_tangent,
-    _kv_damp,
-    _kv_tangent,
+    _kv_flow,
+    _kv_flow_tangent,
 )
 from crgpr.physics.material import bend_law, stretch_law
 from crgpr.physics.ports import _tip_load
@@ -89,14 +89,15 @@ def _forces(scheme, q, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b
 
 
 @njit(cache=True)
-def _port_kick(v, i, P, m_t, m_r, free, h, v_pre):
+def _port_kick(v, i, P, m_t, m_r, free, h, v_pre, n_c):
     """Kick node i by the port load P (F_x, F_y, M) over h, after its elastic and gravity kick
     from the velocities ``v_pre``; returns the port work [J]: the port impulse h P dotted with
     the mean of the velocities before and after the whole kick. The kick's kinetic-energy change
     is exactly its total impulse dotted with that mean, so this is the ports' exact share (the
-    elastic share cancels the potential's change to the scheme's O(dt^2))."""
+    elastic share cancels the potential's change to the scheme's O(dt^2)). Components
+    0..n_c-1 only (n_c = 2: the moment goes with the Kelvin-Voigt flow, ``_kv_flow``)."""
     w = 0.0
-    for c in range(3):
+    for c in range(n_c):
         m = m_t[i] if c < 2 else m_r[i]
         v[i, c] += h * P[c] / m * free[i, c]
         w += h * P[c] * free[i, c] * 0.5 * (v_pre[c] + v[i, c])
@@ -114,7 +115,9 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
     the rollout itself does the same arithmetic with or without them. ``u`` (n_steps + 1,
     n_channels): the input values at the step times k dt (``physics.ports``; 0 rows: no inputs),
     applied at the tip after each elastic kick with the tendon offset ``d_tendon``; their
-    cumulative work is recorded in ``out_w``."""
+    cumulative work is recorded in ``out_w``. ``kv`` (3, n, n): the Kelvin-Voigt rod's rotational
+    half-kick flow (``dissipation.kelvin_voigt_flow``, which then holds the rotational damping
+    lam_r too); (0, n, n): none, the plain kick with the Strang-split diagonal flow."""
     n = q.shape[0]
     use_u = u.shape[0] > 0
     tip = n - 1
@@ -141,26 +144,30 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
     out_v[0] = v
     out_d[0] = 0.0
     h = 0.5 * dt
-    ft, fr = _damp_exponentials(lam_t, lam_r, h)
     use_kv = kv.shape[0] > 0
+    ft, fr = _damp_exponentials(lam_t, lam_r * (0.0 if use_kv else 1.0), h)
+    kr = 0.0 if use_kv else 1.0  # the rotational kick is part of the Kelvin-Voigt flow
+    n_c = 2 if use_kv else 3
     bx, by = q[0, 0], q[0, 1]
     for k in range(1, n_steps + 1):
         if m > 0:
             _damp_tangent(v, dv, ft, fr, k_quad, free, h)
             if use_kv:
-                _kv_tangent(dv, kv)
+                _kv_flow_tangent(dv, dF, m_r, free, kv)
         diss += _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
-        if use_kv:
-            diss += _kv_damp(v, m_r, kv)
         if use_u:
             for c in range(3):
                 vpre[c] = v[tip, c]
+        if use_kv:
+            diss += _kv_flow(v, F, Pt[2] if use_u else 0.0, tip, m_r, free, kv)
+            if use_u:
+                work += h * Pt[2] * free[tip, 2] * 0.5 * (vpre[2] + v[tip, 2])
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
-            v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
+            v[i, 2] += kr * h * F[i, 2] / m_r[i] * free[i, 2]
             if use_u and i == tip:
-                work += _port_kick(v, i, Pt, m_t, m_r, free, h, vpre)
+                work += _port_kick(v, i, Pt, m_t, m_r, free, h, vpre, n_c)
             q[i, 0] += dt * v[i, 0]
             q[i, 1] += dt * v[i, 1]
             q[i, 2] += dt * v[i, 2]
@@ -168,7 +175,7 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
             for i in range(n):
                 dv[a, i, 0] += h * dF[a, i, 0] / m_t[i] * free[i, 0]
                 dv[a, i, 1] += h * dF[a, i, 1] / m_t[i] * free[i, 1]
-                dv[a, i, 2] += h * dF[a, i, 2] / m_r[i] * free[i, 2]
+                dv[a, i, 2] += kr * h * dF[a, i, 2] / m_r[i] * free[i, 2]
                 dq[a, i, 0] += dt * dv[a, i, 0]
                 dq[a, i, 1] += dt * dv[a, i, 1]
                 dq[a, i, 2] += dt * dv[a, i, 2]
@@ -179,10 +186,10 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
         for i in range(n):
             v[i, 0] += h * F[i, 0] / m_t[i] * free[i, 0]
             v[i, 1] += h * (F[i, 1] + grav[i]) / m_t[i] * free[i, 1]
-            v[i, 2] += h * F[i, 2] / m_r[i] * free[i, 2]
+            v[i, 2] += kr * h * F[i, 2] / m_r[i] * free[i, 2]
         if use_u:
             _tip_load(q[tip, 2], u[k], d_tendon, Gs, Pt)
-            work += _port_kick(v, tip, Pt, m_t, m_r, free, h, vpre)
+            work += _port_kick(v, tip, Pt, m_t, m_r, free, h, vpre, n_c)
         if m > 0:
             _force_tangent(q, dq, ds, EA, GA, EI_seg, kap_seg, law, kappa0, nu1_0, nu2_0, b_nl, k_base,
                            dth_base, dF)
@@ -190,13 +197,16 @@ def _rod_kernel(q, v, free, m_t, m_r, lam_t, lam_r, k_quad, grav, ds, EA, GA, EI
                 for i in range(n):
                     dv[a, i, 0] += h * dF[a, i, 0] / m_t[i] * free[i, 0]
                     dv[a, i, 1] += h * dF[a, i, 1] / m_t[i] * free[i, 1]
-                    dv[a, i, 2] += h * dF[a, i, 2] / m_r[i] * free[i, 2]
+                    dv[a, i, 2] += kr * h * dF[a, i, 2] / m_r[i] * free[i, 2]
             _damp_tangent(v, dv, ft, fr, k_quad, free, h)
             if use_kv:
-                _kv_tangent(dv, kv)
+                _kv_flow_tangent(dv, dF, m_r, free, kv)
         diss += _damp_factors(v, m_t, m_r, ft, fr, k_quad, free, h)
         if use_kv:
-            diss += _kv_damp(v, m_r, kv)
+            w0 = v[tip, 2]
+            diss += _kv_flow(v, F, Pt[2] if use_u else 0.0, tip, m_r, free, kv)
+            if use_u:
+                work += h * Pt[2] * free[tip, 2] * 0.5 * (w0 + v[tip, 2])
         if k % every == 0:
             r = k // every
             bad = False

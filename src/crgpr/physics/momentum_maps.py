@@ -17,8 +17,6 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from crgpr.physics.dissipation import kv_apply
-
 
 @njit(cache=True)
 def _value(x, xs, ys, a, b, lin, st):
@@ -69,15 +67,12 @@ def _velocity(p, xs, ys, off, lin, st, out):
 
 
 @njit(cache=True)
-def _damp(p, xs, ys, off, lin, st, free, zeta, h, wds, P, out, lost):
+def _damp(p, xs, ys, off, lin, st, free, zeta, h, wds, out, lost):
     """``run_hamiltonian``'s generic damping half-step for the maps (its formulas, per rod b):
     p1 = p - f(s) H_p(p) free, f = (1 - exp(-zeta s h)) / s (zeta h where |zeta s h| < 1e-12),
-    s = dH_p/dp at p; lost = sum_i w_i ds (H_p(p) + H_p(p1)) (p - p1) / 2; then, with a
-    Kelvin-Voigt propagator P (n, n), p1_theta <- P p1_theta and lost less the trapezoid of
-    H_p_theta over that flow. out (B, n, 3) = p1, lost (B,)."""
+    s = dH_p/dp at p; lost = sum_i w_i ds (H_p(p) + H_p(p1)) (p - p1) / 2. out (B, n, 3) = p1,
+    lost (B,)."""
     n = p.shape[1]
-    v1 = np.empty(n)
-    pb = np.empty(n)
     for b in range(p.shape[0]):
         e = 0.0
         for i in range(n):
@@ -91,14 +86,6 @@ def _damp(p, xs, ys, off, lin, st, free, zeta, h, wds, P, out, lost):
                 vv = _value(x1, xs, ys, off[k], off[k + 1], lin[k], st[k])
                 e += 0.5 * wds[i] * (v0 + vv) * d
                 out[b, i, k] = x1
-                if k == 2:
-                    v1[i] = vv
-        if P.shape[0] > 0:
-            kv_apply(P, out[b, :, 2], pb)
-            for i in range(n):
-                vb = _value(pb[i], xs, ys, off[2], off[3], lin[2], st[2])
-                e -= 0.5 * wds[i] * free[i, 2] * (v1[i] + vb) * (pb[i] - out[b, i, 2])
-                out[b, i, 2] = pb[i]
         lost[b] = e
 
 
@@ -153,20 +140,18 @@ class MomentumMaps:
         _velocity(p2, *self._args(), out)
         return out.reshape(p.shape)
 
-    def damping(self, free: np.ndarray, zeta: float, h: float, wds: np.ndarray,
-                propagator: np.ndarray | None) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
-        """p -> (p after the damping half-step of length h, energy removed per rod):
-        ``run_hamiltonian``'s generic step for these maps, with the Kelvin-Voigt ``propagator``
-        (n, n) of a learned bending damping (None: none)."""
+    def damping(self, free: np.ndarray, zeta: float, h: float, wds: np.ndarray
+                ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """p -> (p after the damping half-step of length h on the entries ``free`` marks, energy
+        removed per rod): ``run_hamiltonian``'s generic step for these maps."""
         fr = np.ascontiguousarray(np.asarray(free, dtype=float))
         w = np.ascontiguousarray(np.asarray(wds, dtype=float))
-        P = np.zeros((0, 0)) if propagator is None else np.ascontiguousarray(propagator, dtype=float)
         args = self._args()
 
         def damp(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             p2 = np.ascontiguousarray(p.reshape(-1, *p.shape[-2:]), dtype=float)
             out, lost = np.empty_like(p2), np.empty(p2.shape[0])
-            _damp(p2, *args, fr, float(zeta), float(h), w, P, out, lost)
+            _damp(p2, *args, fr, float(zeta), float(h), w, out, lost)
             return out.reshape(p.shape), lost.reshape(p.shape[:-2])
         return damp
 

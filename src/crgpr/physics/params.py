@@ -136,8 +136,8 @@ class RodParams:
         rotational row (half a segment of inertia). A material's EI(s) profile raises the
         bending term by its largest factor; the bound is that of the laws' tangent at zero
         strain (the stiffening laws stiffen further under load). The Kelvin-Voigt damping is
-        integrated by its exact flow (``dissipation.kelvin_voigt_propagator``) and sets no bound. Used to
-        reject a time step that cannot be stable.
+        integrated with the rotational kick as one exact flow (``dissipation.kelvin_voigt_flow``)
+        and sets no bound. Used to reject a time step that cannot be stable.
         """
         ds = self.ds
         w2_t = 4.0 * max(self.EA, self.GA) / (self.rhoA * ds**2)

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from crgpr.io import frame_to_grid
-from crgpr.physics.dissipation import kelvin_voigt_propagator
+from crgpr.physics.dissipation import kelvin_voigt_flow
 from crgpr.physics.integrator import Integration, run_rod
 from crgpr.physics.params import RodParams, SimSettings
 from crgpr.physics.ports import CHANNELS, Ports
@@ -78,6 +78,14 @@ def rod_kernel_args(params: RodParams, theta_base: float) -> tuple:
             params.nonlinear_stiffness, params.base_spring, theta_base)
 
 
+def kelvin_voigt_kick(params: RodParams, m_r: np.ndarray, lam_r: np.ndarray, dt: float) -> np.ndarray:
+    """``run_rod``'s ``kv``: the rod's rotational half-kick flow over dt/2 with its Kelvin-Voigt
+    damping ``internal_damping`` and rotational rates lam_r (``dissipation.kelvin_voigt_flow``;
+    an empty stack without Kelvin-Voigt damping)."""
+    return kelvin_voigt_flow(params.internal_damping, params.ds, m_r, lam_r, free_mask(params)[:, 2],
+                             0.5 * dt)
+
+
 def simulate(
     theta0_deg: float,
     params: RodParams,
@@ -117,8 +125,7 @@ def simulate(
         q_init, v_init, free_mask(params), m_t, m_r, lam_t, lam_r, k_quad, grav,
         rod_kernel_args(params, float(q_init[0, 2])), settings.dt, settings.n_steps,
         settings.record_every,
-        kv=kelvin_voigt_propagator(params.internal_damping, params.ds, m_r, free_mask(params)[:, 2],
-                                   0.5 * settings.dt),
+        kv=kelvin_voigt_kick(params, m_r, lam_r, settings.dt),
         scheme=settings.scheme, dq0=dq0, dv0=dv0, u=u,
         tendon_offset=0.0 if ports is None else ports.tendon_offset_m,
     )
