@@ -100,8 +100,7 @@ def test_kelvin_voigt_flow_is_the_exact_affine_flow():
 def test_a_kelvin_voigt_rod_converges_at_second_order_in_the_step():
     """With the rotational half-kick as the exact affine flow, halving dt cuts the error against a
     16 times finer step by about four (a Strang split of so stiff a damping around the kick is
-    first order: measured 0.10, 0.058, 0.031 rad at dt, dt/2, dt/4 on the study's viscoelastic
-    rod, ``docs/materials.md``)."""
+    first order: ``benchmarks/kv_step_convergence.csv``)."""
     rod = P.replace(internal_damping=2e-4)
     ref = simulate(85.0, rod, SimSettings(dt=S.dt / 16, t_end=0.3, record_every=80, scheme="variational"))
     err = []

@@ -23,13 +23,10 @@ dkappa_j/dt = (omega_{j+1} - omega_j) / ds from the angular rates of the trainin
 * the band of c: the delete-a-block jackknife, c +- 1.96 se.
 * refinement by the rollout (``refine_by_rollout``, where ``camera.learn.record_fit`` is off;
   with it on, the record fit sizes c jointly with the bending law's warp,
-  ``learning.record_fit``): the regression sees c dkappa/dt only as far
-  as the targets resolve it. The rod's short-wave bending modes are overdamped and faster
-  than any record, and the integrator's exact flow damps them less per step than c dkappa/dt
-  of the recorded rates says, so the regression's c falls short of the c that reproduces the
-  motion (also from the rod's exact state), and noisy camera rates attenuate it further.
-  Where the damping is kept, c is therefore refined as the one that best reproduces the
-  training record itself: the learned rod (its elastic laws already trained) rolled out from
+  ``learning.record_fit``): the regression sees c dkappa/dt only as far as the targets
+  resolve it: noisy camera rates attenuate it, and a bending law left nominal passes its
+  shape error to it. Where the damping is kept, c is therefore refined as the one that best
+  reproduces the training record itself: the learned rod (its elastic laws already trained) rolled out from
   the record's first state, RMSE of theta over the free nodes at the record's frames,
   minimised over log c in [c_fit / f, c_fit f] by golden section (f = ``refine_factor``,
   ``refine_evaluations`` rollouts; 0: no refinement).
