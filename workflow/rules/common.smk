@@ -1,4 +1,5 @@
 # Shared paths and functions of every rule file.
+import threading
 from pathlib import Path
 
 from crgpr.commands.deps import code_closure as _code_closure
@@ -12,6 +13,22 @@ ENV = "../envs/crgpr.yaml"  # relative to the rule files in workflow/rules/
 def code_closure(script):
     """Library files a rule's script imports, transitively (editing one reruns the rule)."""
     return _code_closure(BASE / "workflow" / "scripts" / script, BASE / "src")
+
+
+def cancel_pending_scheduler_passes():
+    """End the job rate limiter's pending re-scheduling timers (profiles/default,
+    ``max-jobs-per-timespan``), so that Snakemake exits when the last job ends, not a timespan later."""
+    for thread in threading.enumerate():
+        if isinstance(thread, threading.Timer):
+            thread.cancel()
+
+
+onsuccess:
+    cancel_pending_scheduler_passes()
+
+
+onerror:
+    cancel_pending_scheduler_passes()
 
 
 def _one_of(methods):
