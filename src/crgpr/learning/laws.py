@@ -161,9 +161,28 @@ def _odd_rss(kappa: np.ndarray, m: np.ndarray, rows: list[np.ndarray], c: float,
     return sum(_lstsq(_odd_design((kappa[r] - c) / scale, degree), m[r])[1] for r in rows if r.size)
 
 
+def _zero_crossings(kappa: np.ndarray, m: np.ndarray, rows: list[np.ndarray]) -> np.ndarray:
+    """The curvature where each group's least-squares line m = a + b kappa vanishes (groups with
+    b > 0): where a group's samples straddle its zero moment, the rest curvature is close to it."""
+    out = []
+    for r in rows:
+        if r.size < 3 or np.ptp(kappa[r]) <= 0.0:
+            continue
+        b, a = np.polyfit(kappa[r], m[r], 1)
+        if b > 0.0 and np.isfinite(a / b):
+            out.append(-a / b)
+    return np.array(out, dtype=float)
+
+
 def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float, rows: list[np.ndarray]) -> float:
     """c of the odd law (coefficients of its own in each group of ``rows``, one c) minimising the
-    squared residual (profile least squares)."""
+    squared residual (profile least squares): the best point of a grid over the samples' range
+    widened by it on both sides, refined by a bounded search between its neighbours. With
+    groups whose curvatures span little (a rod's tip segments) the residual has a valley about
+    the true c narrower than the grid's step, which the grid can miss altogether (a softening
+    pre-curved rod's full state: c = 176 /m for a true 1.5); so each group's zero crossing
+    (``_zero_crossings``) and their median are candidates too, each refined by a zoom (grids of
+    21 points over +-1, +-0.1, +-0.01 grid steps) and a bounded search; the lowest residual wins."""
     lo, hi = float(kappa.min()), float(kappa.max())
     span = max(hi - lo, 1e-12)
 
@@ -175,7 +194,23 @@ def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float, rows: 
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 1e-10 * span})
-    return float(res.x) if res.fun <= vals[i] else float(grid[i])
+    best, best_rss = float(grid[i]), float(vals[i])
+    if res.fun <= best_rss:
+        best, best_rss = float(res.x), float(res.fun)
+    cross = _zero_crossings(kappa, m, rows)
+    cross = cross[(cross >= grid[0]) & (cross <= grid[-1])]
+    if cross.size == 0:
+        return best
+    step = grid[1] - grid[0]
+    starts = np.r_[cross, np.median(cross)]
+    c0 = float(starts[int(np.argmin([rss(c) for c in starts]))])
+    for width in (step, step / 10.0, step / 100.0):
+        zoom = c0 + np.linspace(-width, width, 21)
+        c0 = float(zoom[int(np.argmin([rss(c) for c in zoom]))])
+    w = step / 1000.0
+    res = minimize_scalar(rss, bounds=(c0 - w, c0 + w), method="bounded", options={"xatol": 1e-10 * span})
+    c1, r1 = (float(res.x), float(res.fun)) if res.fun <= rss(c0) else (c0, rss(c0))
+    return c1 if r1 < best_rss else best
 
 
 def _heldout_error(kappa: np.ndarray, m: np.ndarray, train: np.ndarray, test: np.ndarray,
