@@ -209,7 +209,8 @@ def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float, rows: 
         c0 = float(zoom[int(np.argmin([rss(c) for c in zoom]))])
     w = step / 1000.0
     res = minimize_scalar(rss, bounds=(c0 - w, c0 + w), method="bounded", options={"xatol": 1e-10 * span})
-    c1, r1 = (float(res.x), float(res.fun)) if res.fun <= rss(c0) else (c0, rss(c0))
+    r0 = rss(c0)
+    c1, r1 = (float(res.x), float(res.fun)) if res.fun <= r0 else (c0, r0)
     return c1 if r1 < best_rss else best
 
 
