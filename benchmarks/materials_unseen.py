@@ -20,7 +20,9 @@ terms of the profile along the rod it kept (``profile_terms`` of the stiffness f
 stiffness of the bending law as rolled out over its covered curvatures in units of EI
 (``min_tangent_over_ei``, the manifest's ``bending_tangent``; empty for a nominal law unwarped),
 and the learn wall time. ``--keep DIR`` keeps
-the records and models there. ``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
+the records and models there (``--rescore``: score the kept ones again after a change of the
+scoring, learning nothing; ``learn_seconds`` then comes from the rows already in ``--csv``).
+``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
 value read as YAML) runs a variant of the config; its rows carry the overrides in a column
 ``overrides``, and ``--append`` adds them to an existing ``--csv``. ``--case NAME MATERIAL
 THETA0`` (repeatable) runs a rod of your own through the same rules: ``MATERIAL`` a
@@ -132,10 +134,13 @@ def grid_floor(cfg: dict[str, Any], case: str, test: Path) -> float:
 
 
 def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,
-             inputs: tuple[str, ...] = INPUTS, reuse: bool = False) -> list[dict[str, Any]]:
+             inputs: tuple[str, ...] = INPUTS, reuse: bool = False,
+             rescore: dict[tuple[str, str], float] | None = None) -> list[dict[str, Any]]:
     """The study's rules on one case in ``root``: its records (from a ``refine`` times finer true
     rod where > 1; ``reuse``: the records kept in ``root`` from an earlier run, where all three
-    are there), then ``inputs`` learned and scored."""
+    are there), then ``inputs`` learned and scored. ``rescore``: the models kept in ``root`` are
+    scored again, not learned; the mapping (case, input) -> learn seconds of the earlier run
+    (NaN where absent) fills ``learn_seconds``."""
     material, theta0 = CASES[case]
     c = copy.deepcopy(cfg)
     c["materials_study"]["cases"][case] = material
@@ -154,9 +159,10 @@ def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,
     rows = []
     for source in inputs:
         t0 = time.perf_counter()
-        material_learn(c, source, str(d / ("train.parquet" if source == "full_state" else "camera.parquet")),
-                       str(d / f"model_{source}"))
-        seconds = time.perf_counter() - t0
+        if rescore is None:
+            record = d / ("train.parquet" if source == "full_state" else "camera.parquet")
+            material_learn(c, source, str(record), str(d / f"model_{source}"))
+        seconds = time.perf_counter() - t0 if rescore is None else rescore.get((case, source), float("nan"))
         material_score(c, case, source, str(d / f"model_{source}"), str(d / "train.parquet"),
                        str(d / "test.parquet"), str(d / f"scores_{source}.parquet"),
                        str(d / f"tips_{source}.parquet"))
@@ -229,11 +235,14 @@ def main() -> None:
                     help="records from a true rod with K times more segments (module docstring)")
     ap.add_argument("--inputs", default=",".join(INPUTS), help="comma-separated inputs to learn from")
     ap.add_argument("--reuse", action="store_true", help="the records kept in --keep from an earlier run")
+    ap.add_argument("--rescore", action="store_true",
+                    help="score the records and models kept in --keep again, learning nothing (their "
+                         "learn seconds from the rows of --csv)")
     args = ap.parse_args()
     inputs = tuple(args.inputs.split(","))
-    if not inputs or any(i not in INPUTS for i in inputs) or (args.reuse and not args.keep):
+    if not inputs or any(i not in INPUTS for i in inputs) or ((args.reuse or args.rescore) and not args.keep):
         print(f"materials_unseen.py: --inputs: a comma-separated subset of {list(INPUTS)}; "
-              "--reuse needs --keep", file=sys.stderr)
+              "--reuse and --rescore need --keep", file=sys.stderr)
         sys.exit(2)
     for name, material, theta0 in args.case:
         CASES[name] = extra_case(name, material, theta0)
@@ -247,11 +256,21 @@ def main() -> None:
         print("materials_unseen.py: --truth-refine: a whole number >= 1", file=sys.stderr)
         sys.exit(2)
     cfg, sets = overridden(load_config(args.config), args.set)
+    rescore = None
+    if args.rescore:
+        need = [Path(args.keep) / c / f for c in names
+                for f in ("train.parquet", "test.parquet", *(f"model_{i}/manifest.json" for i in inputs))]
+        missing = [p for p in need if not p.is_file()]
+        if missing:
+            print(f"materials_unseen.py: --rescore: {missing[0]} not kept", file=sys.stderr)
+            sys.exit(2)
+        old = pd.read_csv(args.csv) if Path(args.csv).is_file() else pd.DataFrame()
+        rescore = {} if old.empty else {(r.case, r.input): float(r.learn_seconds) for r in old.itertuples()}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         for case in names:
-            rows += run_case(cfg, case, root, args.truth_refine, inputs, args.reuse)
+            rows += run_case(cfg, case, root, args.truth_refine, inputs, args.reuse or args.rescore, rescore)
     out = pd.DataFrame(rows)
     if sets:
         out["overrides"] = json.dumps(sets, sort_keys=True)

@@ -734,12 +734,23 @@ def _posterior_mean_std(post: ExactPosterior | SparsePosterior, xs: np.ndarray) 
     return sp.basis_fn(xs) @ post.beta_bar + k @ post.alpha
 
 
+def jackknife_variance(posts: list[ExactPosterior | SparsePosterior], x: np.ndarray) -> np.ndarray:
+    """The delete-a-block jackknife variance V_jk(x) = (B - 1) / B sum_b (m_-b(x) - mean_b
+    m_-b(x))^2 of a posterior mean (Kuensch 1989) at raw inputs x (m, d), from the B
+    leave-one-block-out posteriors ``posts`` (``heldout_block_scale``'s ``posteriors``), in
+    output units squared."""
+    mj = np.asarray([_posterior_mean_std(p, p.spec.standardise(x)) * p.spec.out_scale for p in posts])
+    return (len(posts) - 1) / len(posts) * np.sum((mj - mj.mean(0)) ** 2, axis=0)
+
+
 HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")
 
 
 def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, statistic: str = "median",
                         eval_points: int = 2000, full: ExactPosterior | SparsePosterior | None = None,
-                        block_coefficients: list[np.ndarray] | None = None) -> tuple[float, dict[str, Any]]:
+                        block_coefficients: list[np.ndarray] | None = None,
+                        posteriors: list[ExactPosterior | SparsePosterior] | None = None
+                        ) -> tuple[float, dict[str, Any]]:
     """Posterior scale c from held-out contiguous blocks of the training rows (blocked CV).
 
     The rows are split into ``n_blocks`` contiguous blocks (for the gradient GPs: time blocks of
@@ -776,6 +787,8 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
     ``block_coefficients`` (a list, sparse case only): receives the coefficient vector
     theta_-b = (beta, v) of each leave-one-block-out DTC posterior, for
     ``SparsePosterior.sample(..., jackknife=...)`` (the jackknife covariance, not a scale).
+    ``posteriors`` (a list): receives each leave-one-block-out posterior, for the pointwise
+    ``jackknife_variance`` elsewhere than at the training inputs.
     """
     n = spec.Xs.shape[0]
     if not 2 <= n_blocks <= n // 2:
@@ -796,6 +809,8 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
             if Z is None:
                 raise ValueError(f"{spec.name}: block coefficients need the sparse (inducing) posterior")
             block_coefficients.append(post.mu.copy())
+        if posteriors is not None:
+            posteriors.append(post)
         x_te = spec.Xs[te] * spec.x_std + spec.x_mean
         m, v = post.mean_var(x_te)
         r = spec.to_output(spec.y[te]) - m

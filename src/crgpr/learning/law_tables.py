@@ -18,14 +18,20 @@ both sides, the other inputs at their training medians:
   one block is left out than the latent band allows (a law learned from exact full-state
   moments: sigma_n ~ 1e-5 of the law, its finite-difference targets' systematic error not in
   it) the band widens by that factor; it is never narrowed (the jackknife of a local estimator
-  does not see extrapolation, the latent band does); and never below ``sd_floor`` =
+  does not see extrapolation, the latent band does). The scale c is a median over the record,
+  so where the mean moves more than elsewhere (a law along s whose errors run along the
+  trajectory at a few segments only) the band also takes the jackknife variance V_jk(x) of the
+  mean at x itself (``gp.sampling.jackknife_variance``): var = max(c^2 v(x), V_jk(x)), the
+  larger of two estimates of the same variance; and never below ``sd_floor`` =
   sigma_n / sqrt(band_blocks) (sigma_n: the law GP's noise sd), added in quadrature: with
   errors correlated along the trajectory the record holds about ``band_blocks`` independent
   samples of them, not n (the held-out rules' unit, ``learning.law_choice``), and a bias common
   to every block (a finite-difference or discretisation error of the targets, the same in each
   block) moves no jackknife estimate; the floor is uniform in the inputs, so it says nothing of
   where the data end, and the bending law's reach (``learning.extrapolation``) is taken on the
-  band without it (``floor`` False). ``band_blocks`` 0: the latent band;
+  band without it and without V_jk (``floor`` False: a leave-one-block-out mean moves most
+  where one block alone holds the data, the reach is the latent band's). ``band_blocks`` 0:
+  the latent band;
 * ``nominal``: the nominal rod's law at the same inputs (n1 = EA (nu1 - nu1_0), n2 = GA (nu2 -
   nu2_0), m = EI (kappa - kappa0));
 * ``covered``: whether x_j lies inside [lo_j, hi_j];
@@ -37,6 +43,7 @@ both sides, the other inputs at their training medians:
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +51,13 @@ import numpy as np
 import pandas as pd
 
 from crgpr.gp import GP, Table1D, load_evaluator
-from crgpr.gp.sampling import heldout_block_scale, scaled_spec, subset_spec
+from crgpr.gp.sampling import (
+    ExactPosterior,
+    heldout_block_scale,
+    jackknife_variance,
+    scaled_spec,
+    subset_spec,
+)
 from crgpr.learning.law_choice import standin_departure
 from crgpr.learning.warp import Warp, law_factor, segment_positions, shifted_kappa, warp_sd
 from crgpr.physics.params import RodParams
@@ -73,8 +86,27 @@ def _mean(stem: Path, X: np.ndarray) -> np.ndarray:
     return np.asarray(ev(X[:, 0]) if isinstance(ev, Table1D) else ev(X), dtype=float).ravel()
 
 
-def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple[GP, float, float]:
-    """The GP of a law's band (module docstring, ``sd``), its ``sd_scale`` and ``sd_floor``."""
+@dataclass
+class _Band:
+    """A law's band (module docstring, ``sd``): its GP (scaled by ``c``), ``floor`` and the
+    leave-one-block-out posteriors of its pointwise jackknife (empty: none)."""
+
+    gp: GP
+    c: float
+    floor: float
+    blocks: list[ExactPosterior]
+
+    def sd(self, X: np.ndarray) -> np.ndarray:
+        """sqrt(max(c^2 var, V_jk) + floor^2) at rows X (module docstring)."""
+        var = np.asarray(self.gp.predict(X, return_var=True)[1], dtype=float).ravel()
+        if self.blocks:
+            var = np.maximum(var, jackknife_variance(self.blocks, X))
+        return np.sqrt(var + self.floor**2)
+
+
+def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int, systematic: bool) -> _Band:
+    """The band of a law (module docstring, ``sd``): ``systematic`` False, its latent band widened
+    by the global jackknife scale alone (no floor, no pointwise jackknife)."""
     from crgpr.uq.samples import load_gp_spec  # rows time-major, an odd law's reflections interleaved
 
     spec, _, _ = load_gp_spec(stem, stem.name, sampled=False)
@@ -82,19 +114,14 @@ def _sd_model(stem: Path, max_points: int, seed: int, band_blocks: int) -> tuple
     if idx.size > max_points:
         idx = np.sort(np.random.default_rng(seed).choice(idx.size, size=max_points, replace=False))
     gp = subset_spec(spec, idx)
-    c = 1.0
+    c, posts = 1.0, []
     if band_blocks and idx.size >= 2 * band_blocks:
-        c = max(1.0, float(heldout_block_scale(gp, band_blocks, None, "jackknife", max_points)[0]))
+        c = max(1.0, float(heldout_block_scale(gp, band_blocks, None, "jackknife", max_points,
+                                               posteriors=posts if systematic else None)[0]))
     floor = 0.0
-    if band_blocks:
+    if band_blocks and systematic:
         floor = float(json.loads(stem.with_suffix(".json").read_text())["sigma_n"]) / np.sqrt(band_blocks)
-    return (scaled_spec(gp, c) if c > 1.0 else gp), c, floor
-
-
-def _band_sd(gp: GP, X: np.ndarray, floor: float) -> np.ndarray:
-    """sqrt(var + floor^2) of the band's GP at rows X (module docstring)."""
-    var = np.asarray(gp.predict(X, return_var=True)[1], dtype=float).ravel()
-    return np.sqrt(var + floor**2)
+    return _Band(scaled_spec(gp, c) if c > 1.0 else gp, c, floor, posts)
 
 
 def law_table(stem: str | Path, name: str, features: list[str], params: RodParams, n_grid: int, pad: float,
@@ -103,7 +130,7 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
               truncation: np.ndarray | None = None) -> pd.DataFrame:
     """One law's table (see module docstring): columns law, input, x, mean, sd, nominal, covered,
     covered_lo, covered_hi, sd_points, sd_scale, sd_floor, at_s (``floor`` False: the band without
-    its floor, ``sd_floor`` 0). ``warp``: the bending law's record-fit warp
+    its floor and its pointwise jackknife, ``sd_floor`` 0). ``warp``: the bending law's record-fit warp
     (``learning.record_fit``: center, kappa scale, coefficients), which scales mean and sd;
     ``warp_cov``: its coefficients' covariance, whose sd of the warp adds to the band:
     sd^2 = (w sd_law)^2 + (m_law sd_w)^2 (``truncation``: with the warp's truncation estimate,
@@ -111,8 +138,7 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     stem = Path(stem)
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         Xt = np.asarray(f["X"], dtype=float)
-    sd_gp, c, sd_floor = _sd_model(stem, max_points, seed, band_blocks)
-    sd_floor = sd_floor if floor else 0.0
+    band = _sd_model(stem, max_points, seed, band_blocks, floor)
     med = np.median(Xt, axis=0)
     js = features.index("s") if "s" in features else None
     s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
@@ -129,14 +155,14 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
             s_rel = None if js is None else X[:, js] / (params.N * params.ds)
             for i in _curvature_columns(features):  # the warp's rest shift moves the law's curvature inputs
                 X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
-            mean, sd = _warped(_mean(stem, X), _band_sd(sd_gp, X, sd_floor),
+            mean, sd = _warped(_mean(stem, X), band.sd(X),
                                None if warp is None else X[:, features.index("kappa")], warp, warp_cov, s_rel,
                                truncation)
             rows.append(pd.DataFrame({"law": name, "input": feat, "x": g, "mean": mean, "sd": sd,
                                       "nominal": nominal_law(name, features, X, params),
                                       "covered": (g >= lo) & (g <= hi), "covered_lo": lo, "covered_hi": hi,
-                                      "sd_points": int(sd_gp.Xs.shape[0]), "sd_scale": c,
-                                      "sd_floor": sd_floor, "at_s": float(sv)}))
+                                      "sd_points": int(band.gp.Xs.shape[0]), "sd_scale": band.c,
+                                      "sd_floor": band.floor, "at_s": float(sv)}))
     return pd.concat(rows, ignore_index=True)
 
 
@@ -227,7 +253,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     features = list(json.loads(stem.with_suffix(".json").read_text())["features"])
     with np.load(stem.with_suffix(".npz"), allow_pickle=False) as f:
         med = np.median(np.asarray(f["X"], dtype=float), axis=0)
-    sd_gp, _, sd_floor = _sd_model(stem, max_points, seed, band_blocks) if with_sd else (None, 1.0, 0.0)
+    band = _sd_model(stem, max_points, seed, band_blocks, True) if with_sd else None
     s, s_rel = segment_arclength(N, params.ds), segment_positions(N)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
     at = np.empty((kappa.size, N))  # the curvature each segment's law is evaluated at (the warp's rest shift)
@@ -240,7 +266,7 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
                 X[:, i] = shifted_kappa(X[:, i], s_rel[j:j + 1], warp)
         at[:, j] = X[:, features.index("kappa")]
         mean[:, j] = _mean(stem, X)
-        sd[:, j] = 0.0 if sd_gp is None else _band_sd(sd_gp, X, sd_floor)
+        sd[:, j] = 0.0 if band is None else band.sd(X)
         if "s" not in features:  # the same law for every segment
             mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
