@@ -60,8 +60,9 @@ def test_a_bias_common_to_every_block_is_held_by_the_floor_not_the_jackknife(tmp
     same wherever the record goes; at most half the targets' scatter here) plus independent
     noise: no block moves the mean more than the latent band allows (sd_scale about 1, the
     pointwise jackknife within 5 % of the floor's band), and that band misses the true law; the
-    floor sigma_n / sqrt(blocks), uniform over the inputs, holds it. (A bias well above sigma_n / sqrt(blocks) stays outside: no band the record can size
-    holds an error it shows in no statistic.)"""
+    floor sigma_n / sqrt(blocks), uniform over the inputs, holds it. (A bias well above
+    sigma_n / sqrt(blocks) stays outside: no band the record can size holds an error it shows in
+    no statistic.)"""
     kappa = _kappa(400)
     err = -0.001 * EI * kappa + np.random.default_rng(3).normal(0.0, 2e-3 * EI * 20.0, kappa.size)
     stem = _saved_law(tmp_path, err, kappa)

@@ -1,9 +1,10 @@
 """Figure of one materials-study case (``results/figures/material_<case>.png``, docs/materials.md):
 left, the learned bending laws m(kappa) (posterior mean and 95 % band, mean +- 1.96 sd, of each
-input's model, ``laws.parquet``) beside the nominal law EI (kappa - kappa0) and the true law of
-the segments at s = 0, L0 / 2 and L0 (``rod.segment_moment_law``) over the curvatures the
-training record reached; right, the tip's distance from the clamp's vertical, x_tip(t), at the
-first test angle: the true rod, the nominal rod and the learned rods. Written atomically.
+input's model, ``laws.parquet``; a law along s at each of its tabulated arclengths) beside the
+nominal law EI (kappa - kappa0) and the true law of the segments at s = 0, L0 / 2 and L0
+(``rod.segment_moment_law``) over the curvatures the training record reached; right, the tip's
+distance from the clamp's vertical, x_tip(t), at the first test angle: the true rod, the
+nominal rod and the learned rods. Written atomically.
 """
 
 from __future__ import annotations
@@ -42,9 +43,11 @@ def material_figure(case: str, laws: dict[str, pd.DataFrame | None], tips: dict[
         if tab is None:
             continue
         d = tab[(tab["law"] == "obj_m") & (tab["input"] == "kappa")]
-        xx, m, s = d["x"].to_numpy(), d["mean"].to_numpy(), d["sd"].to_numpy()
-        ax.fill_between(xx, m - Z95 * s, m + Z95 * s, color=COLORS[inp], alpha=0.25)
-        ax.plot(xx, m, color=COLORS[inp], label=f"learned, {inp} (95 % band)")
+        # one curve per arclength a law along s is shown at (NaN: a law without s)
+        for i, (_, e) in enumerate(d.groupby(d["at_s"].fillna(-1.0), sort=True)):
+            xx, m, s = e["x"].to_numpy(), e["mean"].to_numpy(), e["sd"].to_numpy()
+            ax.fill_between(xx, m - Z95 * s, m + Z95 * s, color=COLORS[inp], alpha=0.25)
+            ax.plot(xx, m, color=COLORS[inp], lw=1, label=f"learned, {inp} (95 % band)" if i == 0 else None)
     ax.plot(x, nominal.EI * (x - nominal.kappa0), "k--", lw=1, label="nominal")
     span = np.ptp(true)
     ax.set_xlim(lo, hi)
