@@ -309,26 +309,6 @@ def test_a_stiffness_profile_along_s_is_found_where_the_law_takes_s_and_not_wher
     assert uniform.coefficients == [] and np.all(np.abs(b) < 0.01), uniform
 
 
-def test_a_profile_is_offered_with_its_level_where_no_warp_is_chosen(smoke):
-    """A rod 10 % softer overall and graded along s (v(s) with b = (0.3, -0.15)): the two-term
-    warp alone, uniform along s, forecasts the held-out blocks worse and is not chosen. The
-    profile's Legendre terms have mean 0 along the rod, so without the level the profile fits a
-    wrong shape; offered with the warp's constant a_0 (kept as a one-term warp) it finds both,
-    the level to 0.01 and b to 0.02."""
-    P, sim, rf = smoke
-    rf = {**rf, "warp_terms": [2]}
-    arr = _exact_record(P, np.array([-0.1]), 20.0, profile=np.array([0.3, -0.15]))
-
-    def rod(W, c):
-        return _nominal_rod(P, W[:, :2], 20.0, c, W[:, 2:])
-    fit = fit_record(rod, arr, P, sim, 0.0, 20.0, rf, exact_start=True, profile_terms=(2, 0))
-    assert not fit.candidates[0]["chosen"], fit
-    assert fit.kept and fit.warp_terms == 1 and fit.profile_log_ratio > 0, fit
-    assert abs(fit.coefficients[0] + 0.1) < 0.01, fit
-    assert np.allclose(fit.profile_coefficients, [0.3, -0.15], atol=0.02), fit
-    assert np.asarray(fit.coefficient_cov).shape == (3, 3)
-
-
 def test_a_rest_curvature_along_s_shifts_the_laws_input_and_is_found_from_the_record(smoke):
     """The rest shift d(s) moves the law's curvature inputs: the warped law at kappa is the law at
     kappa - d(s_j) (its zero at d(s_j)). A rod whose rest curvature is d(s) = 0.4 + 0.3 P_1 1/m

@@ -336,7 +336,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                float(np.max(np.abs(kappa - center))),
                                0.0 if damping is None else damping.coefficient, kind == "full_state",
                                auto and learned_any, bending_scale,
-                               "obj_m" in laws and kind != "full_state", reach)
+                               "obj_m" in laws and along_s["used"] and kind != "full_state", reach)
         fit = fit_with(grey["nominal_laws"], trained)
         grey = {**grey, "strain_laws_nominal_by_record_fit": False}
         strain = [m for m in trained if m in ("obj_n1", "obj_n2")]
@@ -406,7 +406,7 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
-                against_nominal: bool, bending_scale: float | None = None, profile: bool = False,
+                against_nominal: bool, bending_scale: float | None = None, along_s: bool = False,
                 reach: Reach | None = None) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
@@ -414,17 +414,15 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
     also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
     law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale;
-    with ``profile`` (a bending law learned from positions: their curvature reconstruction
-    smooths a law along s, and a law without s may vary along the rod where the arclength test
-    on the rebuilt curvatures does not see it) a profile along s is offered too
-    (``record_fit.profile``);
+    with ``along_s`` (the bending law learned from positions takes s: their curvature
+    reconstruction smooths it along s) a profile along s is offered too (``record_fit.profile``);
     with ``reach`` the warped law is continued beyond it (``learning.extrapolation``) in every
     rollout of the fit, as the model's rollouts will continue it."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
     rf = cfg["camera"]["learn"]["record_fit"]
     K = max(int(k) for k in rf["warp_terms"])
-    S, R = (int(rf["profile"][k]) if profile else 0 for k in ("stiffness_terms", "rest_terms"))
+    S, R = (int(rf["profile"][k]) if along_s else 0 for k in ("stiffness_terms", "rest_terms"))
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
         m = BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K], W[:, K:K + S], W[:, K + S:K + S + R])

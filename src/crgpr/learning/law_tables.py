@@ -37,10 +37,7 @@ both sides, the other inputs at their training medians:
 * ``covered``: whether x_j lies inside [lo_j, hi_j];
 * ``at_s``: for a law with the arclength s as an input (a bending law varying along the rod,
   ``law_choice``), the grid of every other input is repeated at ``s_points`` values of s evenly
-  over its covered range (so EI(s) can be read off); for a law without s whose record-fit warp
-  varies along s (a profile v(s) or rest shift d(s), ``learning.record_fit``), at ``s_points``
-  values from the first segment's mid-point to the last's; NaN otherwise and for the s grid
-  itself.
+  over its covered range (so EI(s) can be read off); NaN otherwise and for the s grid itself.
 """
 
 from __future__ import annotations
@@ -144,13 +141,7 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     band = _sd_model(stem, max_points, seed, band_blocks, floor)
     med = np.median(Xt, axis=0)
     js = features.index("s") if "s" in features else None
-    L = params.N * params.ds
-    if js is not None:
-        s_at = np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
-    elif warp is not None and (np.size(warp[3]) or np.size(warp[4])):  # a law without s, warped along s
-        s_at = np.linspace(0.5 * params.ds, L - 0.5 * params.ds, s_points)  # the end segments' mid-points
-    else:
-        s_at = [np.nan]
+    s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
     rows = []
     for j, feat in enumerate(features):
         lo, hi = float(Xt[:, j].min()), float(Xt[:, j].max())
@@ -158,11 +149,10 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
         g = np.linspace(lo - w, hi + w, n_grid)
         for sv in ([np.nan] if j == js else s_at):
             X = np.tile(med, (n_grid, 1))
-            if np.isfinite(sv) and js is not None:
+            if np.isfinite(sv):
                 X[:, js] = sv
             X[:, j] = g
-            s_rel = (X[:, js] / L if js is not None else
-                     np.full(n_grid, sv / L) if np.isfinite(sv) else None)
+            s_rel = None if js is None else X[:, js] / (params.N * params.ds)
             for i in _curvature_columns(features):  # the warp's rest shift moves the law's curvature inputs
                 X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
             mean, sd = _warped(_mean(stem, X), band.sd(X),

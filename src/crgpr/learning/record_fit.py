@@ -328,18 +328,14 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     warp is the nominal law's (``crgpr learn`` then refuses the learned bending law), and the
     comparison with ``nominal_rod`` runs against it.
 
-    ``profile_terms`` (S, R), not both 0 (a bending law learned from positions): after the
+    ``profile_terms`` (S, R), not both 0 (a bending law that takes s as an input): after the
     choice of K, a profile along the rod by forward selection on top of the pick: first a
     stiffness factor v(s) of S Legendre terms (``warp.profile_factor``), then a rest-curvature
     shift d(s) of R (``warp.rest_shift``), each fitted on the first part from the pick's fit
     and taken where it forecasts the held-out blocks consistently better than the pick
     (``profile_log_ratio``, ``rest_log_ratio``): a law learned along s from positions is
-    smoothed along s by their curvature reconstruction, a law learned without s may vary along
-    the rod where the rebuilt curvatures do not show it, and the motion shows the profile the
-    regression misses. Where no warp was chosen, v(s) is offered with its level (the warp's
-    constant a_0, kept as a one-term warp: v's Legendre terms have mean 0 along the rod) and
-    also on top of the first warp candidate (a profile the warp alone could not forecast
-    better without); the better of the two consistent gains is taken."""
+    smoothed along s by their curvature reconstruction, and the motion shows the profile the
+    regression misses."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -414,33 +410,17 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     along = np.zeros(n_a, dtype=bool)  # the profile's parameters taken: stiffness, then rest shift
     for name, b in blocks_along.items():  # forward selection on top of the pick
         if b.stop > b.start:
-            # on the pick and, where no warp was chosen, on the first warp candidate too
-            bases = [(k, a_pick, 0)] + ([(offered[0], fits[0], 1)] if name == "profile" and not k and fits
-                                        else [])
-            best = None
-            for kb, ab, ib in bases:
-                free = (np.arange(n_a) < w0 + kb) | along | (at_tail if kb else False)
-                free[b] = True
-                if name == "profile" and not kb:  # the profile's level: the warp's constant a_0
-                    free[w0] = True
-                a_s = levenberg_marquardt(part, ab, free, *lm)[0]
-                r_s = batch_rows(full, a_s[None])
-                if r_s is None:
-                    continue
-                r_s = r_s.reshape(n_t, -1)
-                p_ratio, p_se, better = decide(r_pick[n_fit:] ** 2, r_s[n_fit:] ** 2, blocks)
-                if best is None or (better and (not best[3] or p_ratio > best[1])):
-                    best = (a_s, p_ratio, p_se, better, r_s, kb, ib)
-            if best is None:
+            free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
+            free[b] = True
+            a_s = levenberg_marquardt(part, a_pick, free, *lm)[0]
+            r_s = batch_rows(full, a_s[None])
+            if r_s is None:
                 continue
-            profile.update({f"{name}_log_ratio": best[1], f"{name}_log_ratio_se": best[2]})
-            if best[3]:
-                along[b], a_pick, r_pick = True, best[0], best[4]
-                if name == "profile":  # its level kept as a one-term warp, or the warp it sits on
-                    k = max(best[5], 1)
-                    if best[6]:
-                        chosen = 1
-                        trunc = truncation(fits, offered, 0, w0)
+            r_s = r_s.reshape(n_t, -1)
+            p_ratio, p_se, better = decide(r_pick[n_fit:] ** 2, r_s[n_fit:] ** 2, blocks)
+            profile.update({f"{name}_log_ratio": p_ratio, f"{name}_log_ratio_se": p_se})
+            if better:
+                along[b], a_pick, r_pick = True, a_s, r_s
     if nominal_bending is not None:
         alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
                                damping, exact_start, inputs, ports, terms, lm, blocks)
