@@ -739,8 +739,13 @@ def jackknife_variance(posts: list[ExactPosterior | SparsePosterior], x: np.ndar
     m_-b(x))^2 of a posterior mean (Kuensch 1989) at raw inputs x (m, d), from the B
     leave-one-block-out posteriors ``posts`` (``heldout_block_scale``'s ``posteriors``), in
     output units squared."""
-    mj = np.asarray([_posterior_mean_std(p, p.spec.standardise(x)) * p.spec.out_scale for p in posts])
-    return (len(posts) - 1) / len(posts) * np.sum((mj - mj.mean(0)) ** 2, axis=0)
+    return _jackknife_var(np.asarray([_posterior_mean_std(p, p.spec.standardise(x)) * p.spec.out_scale
+                                      for p in posts]))
+
+
+def _jackknife_var(mj: np.ndarray) -> np.ndarray:
+    """(B - 1) / B sum_b (m_-b - mean_b m_-b)^2 of the B leave-one-block-out means ``mj`` (B, m)."""
+    return (mj.shape[0] - 1) / mj.shape[0] * np.sum((mj - mj.mean(0)) ** 2, axis=0)
 
 
 HELDOUT_STATISTICS = ("rms", "median", "split", "jackknife")
@@ -828,8 +833,7 @@ def heldout_block_scale(spec: GP, n_blocks: int, Z: np.ndarray | None = None, st
     if full is None:
         full = sparse_posterior(spec, Z) if Z is not None else exact_posterior(spec)
     _, v_ev = full.mean_var(xs_ev * spec.x_std + spec.x_mean)
-    mj = np.asarray(m_jk)
-    v_jk = (n_blocks - 1) / n_blocks * np.sum((mj - mj.mean(0)) ** 2, axis=0)
+    v_jk = _jackknife_var(np.asarray(m_jk))
     ratio = v_jk / np.maximum(v_ev, 1e-300)
     c_jk = float(np.sqrt(np.median(ratio)))
     c = {"rms": c_rms, "median": c_med, "split": c_split, "jackknife": c_jk}[statistic]
