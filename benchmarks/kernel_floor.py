@@ -69,7 +69,8 @@ def main() -> None:
     L, t_plain = _factor_seconds(K)
     a_plain = sla.cho_solve((L, True), v, check_finite=False)
     rel = float(np.max(np.abs(a_floor - a_plain)) / np.max(np.abs(a_plain)))
-    row = {"model": args.model, "n": n, "seconds_no_floor": round(t_plain, 2), "seconds_floor": round(t_floor, 2),
+    row = {"model": args.model, "n": n,
+           "seconds_no_floor": round(t_plain, 2), "seconds_floor": round(t_floor, 2),
            "subnormal_fraction_no_floor": round(tiny, 4), "zero_fraction_floor": round(zeros, 4),
            "max_rel_change_of_solve": f"{rel:.2e}"}
     print(row)
