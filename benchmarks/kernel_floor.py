@@ -55,7 +55,7 @@ def main() -> None:
     v = np.ravel(gp.y)[:n]
     sf2, sn2, kid = gp.sigma_f**2, gp.sigma_n**2, KERNEL_ID[gp.kernel]
     K = np.empty((n, n), order="F")
-    _fill_kernel(Ul, kid, sf2, sn2, K)
+    _fill_kernel(Ul, kid, sf2, sn2, K, True)
     zeros = _lower_fraction(K, lambda r: r == 0.0)
     L, t_floor = _factor_seconds(K)
     a_floor = sla.cho_solve((L, True), v, check_finite=False)

@@ -24,7 +24,7 @@ def test_entries_below_the_floor_are_zero_the_rest_exact(kernel):
     n, sf2, noise2 = 300, 1.7, 0.2
     Ul = _spread_inputs(n, 3, 1)
     K = np.full((n, n), np.nan)
-    _fill_kernel(Ul, KERNEL_ID[kernel], sf2, noise2, K)
+    _fill_kernel(Ul, KERNEL_ID[kernel], sf2, noise2, K, True)
     ref = kernel_matrix(kernel, Ul, Ul, np.sqrt(sf2), np.ones(3))
     low = np.tril_indices(n, -1)
     floor = KERNEL_FLOOR * noise2 / n
