@@ -311,7 +311,7 @@ def exact_weights(gp: GP) -> tuple[np.ndarray, np.ndarray]:
         KiV, KiH = sol[:, 0], sol[:, 1:]
     else:
         K = np.empty((gp.n, gp.n), order="F")
-        _fill_kernel(Ul, kid, sf2, sn2, K, True)  # the kernel floor: subnormal-free, same solve
+        _fill_kernel(Ul, kid, sf2, sn2, K)
         L = sla.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
         KiV = sla.cho_solve((L, True), V, check_finite=False)
         KiH = sla.cho_solve((L, True), H, check_finite=False) if H.shape[1] else H
