@@ -22,8 +22,7 @@ import numpy as np
 import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
-from crgpr.gp import GP
-from crgpr.gp._gpr import kernel_matrix
+from crgpr.gp import GP, kernel_matrix
 
 KERNEL_FLOOR = 1e-17
 
