@@ -64,7 +64,7 @@ def _warp_rows(kappa, center, scale, a, out):  # pragma: no cover - compiled
                 elif j == 2:
                     pj = u2 * u2
                 else:
-                    pj = math.pow(u2, float(j))  # as numpy's u2**j to its last bit or so (the pows may round apart)
+                    pj = math.pow(u2, float(j))  # C pow, as numpy's u2**j
                 w = w + a[b, j] * pj
             out[b, i] = w
 
