@@ -2,14 +2,27 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+import os
 
-import pytest
-from hypothesis import settings
+# one BLAS / OpenMP thread, as the pipeline's rules and the command line run (commands/smk.py,
+# limit_threads): a module's numbers are then those of `crgpr` itself, and do not depend on whether
+# a test that ran before it on the same worker called the command line in-process (which limits
+# the threads for the rest of that process)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
 
-from crgpr.config import load_config, rod_params
-from crgpr.physics.params import SimSettings
-from crgpr.physics.simulate import Trajectory, simulate
+from pathlib import Path  # noqa: E402
+
+import pytest  # noqa: E402
+import scipy.linalg  # noqa: E402,F401 - its own BLAS loaded before the limit below
+from hypothesis import settings  # noqa: E402
+
+from crgpr.commands.smk import limit_threads  # noqa: E402
+from crgpr.config import load_config, rod_params  # noqa: E402
+from crgpr.physics.params import SimSettings  # noqa: E402
+from crgpr.physics.simulate import Trajectory, simulate  # noqa: E402
+
+limit_threads()
 
 SMOKE = Path(__file__).resolve().parent / "smoke_config.yaml"
 

@@ -556,3 +556,23 @@ def test_a_short_step_far_from_the_optimum_does_not_end_the_fit():
     accepted = _accepted_costs(costs)
     gains = -np.diff(accepted) / accepted[:-1]  # each step's gain over the cost it starts from
     assert np.any(gains < 0.1) and np.allclose(a, [1.0, 1.0], atol=1e-6) and rms < 1e-6
+
+
+def test_a_learned_rod_that_leaves_the_physical_range_on_its_own_record_falls_back_to_the_nominal_one(smoke):
+    """A learned shear law of the wrong sign (n2 = -GA nu2) tears the rod apart within its
+    record: no warp of the bending law can mend it, and the nominal rod, which stays in range,
+    follows the record better, so every law goes nominal. Without a nominal rod to compare with,
+    the learned law is kept unwarped."""
+    P, sim, rf = smoke
+    arr = _record(P, np.array([0.0]), 20.0, 1e-4, seed=6)
+    torn = NominalLaw("n2", P)
+    torn.stiffness = -torn.stiffness
+
+    def torn_rod(W, c):
+        rod = _nominal_rod(P, W, 20.0, c)
+        return LearnedRod({**rod.components, "obj_n2": torn}, "objective", P, None, c)
+    fit = fit_record(torn_rod, arr, P, sim, 0.0, 20.0, rf, nominal_rod=_nominal_rod(P, None, 20.0))
+    assert "left the physical range" in fit.note and fit.nominal_fallback and not fit.kept, fit
+    assert fit.rmse_nominal < 0.1 and fit.rmse_compared == pytest.approx(math.pi)
+    alone = fit_record(torn_rod, arr, P, sim, 0.0, 20.0, rf)
+    assert "left the physical range" in alone.note and not alone.nominal_fallback and not alone.kept

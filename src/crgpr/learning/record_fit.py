@@ -70,7 +70,8 @@ learn`` keeps every law nominal (``nominal_fallback``), where the nominal rod fo
 held-out blocks consistently better, or follows the whole record with a smaller RMSE of theta:
 the learned laws were regressed on that whole record, so a learned rod that follows it worse
 than the nominal rod does has laws the data do not pin down (a softening law attenuated by the
-curvature's errors in variables, say).
+curvature's errors in variables, say). A learned rod that leaves the physical range on its own
+record (its residuals then pi) is refused where the nominal rod stays within it.
 
 A damped rod's bending law (``_nominal_bending``): where a damping is kept, the moment targets
 hold only part of it as c dkappa/dt (``learning.damping``; docs/learned-laws.md), and a law
@@ -320,7 +321,9 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     ``nominal_rod`` (the rod with every law nominal and no learned damping), its start fitted on
     the same first part: its held-out blocks are compared with the chosen learned rod's;
     where the nominal rod forecasts them consistently better, or reproduces the whole record with
-    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal).
+    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal);
+    so it is where the learned rod leaves the physical range on the record and the nominal one
+    does not.
 
     ``nominal_bending`` = (the rod with the bending law nominal, ``rod(W, c)`` like ``law_rod``; its
     warp's centre; its kappa scale): fitted as the learned rod is and compared with it
@@ -389,8 +392,17 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                                  time.perf_counter() - t_start,
                                  float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
                                  bool(exact_start), None, k, candidates), **bending, **prof)
-    if sel is None:
-        return result(0, zero, math.inf, learned, math.nan, math.nan, "a fitted rod left the physical range")
+    if sel is None:  # the learned rod leaves the physical range on its own record (start alone)
+        note = "the learned rod left the physical range on its own record"
+        if nominal_rod is None:
+            return result(0, zero, math.inf, learned, math.nan, math.nan, note)
+        # its residuals are pi (no better than any angle; as ``batch_rows``): the nominal rod that
+        # stays in range follows the record better, every law nominal
+        torn = np.full((n_t, arr["theta"].shape[1] - 1), math.pi)
+        nominal = _against_nominal(nominal_rod, torn, a_start, arr, params, settings, J, n_fit, n_t,
+                                   exact_start, inputs, ports, lm, blocks)
+        why = "; the nominal rod does not: every law nominal" if nominal["nominal_fallback"] else ""
+        return replace(result(0, zero, math.inf, learned, math.nan, math.nan, note + why), **nominal)
     fits, res, chosen, steps = sel  # rows of res: 0 the start alone, then each candidate offered
     offered = terms[:len(fits)]
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
