@@ -1,6 +1,6 @@
 """Benchmark: the Cholesky factorisation of a trained GP's kernel matrix, with and without a
-kernel floor (off-diagonal entries below 1e-17 noise2 / n stored as 0; not in the library:
-docs/performance.md, "Subnormal numbers"), on one core.
+kernel floor (off-diagonal entries below ``KERNEL_FLOOR`` noise2 / n stored as 0, as the
+library's kernel fills do: docs/performance.md, "Subnormal numbers"), on one core.
 
     python benchmarks/kernel_floor.py [--model results/models/fd/dH_dtheta] [--n 12000] [--csv F]
 
@@ -23,8 +23,7 @@ import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
 from crgpr.gp import GP, kernel_matrix
-
-KERNEL_FLOOR = 1e-17
+from crgpr.gp._gpr import KERNEL_FLOOR
 
 
 def _factor_seconds(K: np.ndarray) -> tuple[np.ndarray, float]:
