@@ -321,8 +321,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     ``nominal_rod`` (the rod with every law nominal and no learned damping), its start fitted on
     the same first part: its held-out blocks are compared with the chosen learned rod's;
     where the nominal rod forecasts them consistently better, or reproduces the whole record with
-    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal);
-    so it is where the learned rod leaves the physical range on the record and the nominal one
+    a smaller RMSE, ``nominal_fallback`` is set (``crgpr learn`` then keeps every law nominal),
+    and also where the learned rod leaves the physical range on the record and the nominal one
     does not.
 
     ``nominal_bending`` = (the rod with the bending law nominal, ``rod(W, c)`` like ``law_rod``; its
@@ -393,16 +393,15 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                                  float(damping * math.exp(a[2 * J]) if nd else damping), float(damping),
                                  bool(exact_start), None, k, candidates), **bending, **prof)
     if sel is None:  # the learned rod leaves the physical range on its own record (start alone)
-        note = "the learned rod left the physical range on its own record"
-        if nominal_rod is None:
-            return result(0, zero, math.inf, learned, math.nan, math.nan, note)
-        # its residuals are pi (no better than any angle; as ``batch_rows``): the nominal rod that
+        # its residuals are pi (no better than any angle; as ``batch_rows``): a nominal rod that
         # stays in range follows the record better, every law nominal
         torn = np.full((n_t, arr["theta"].shape[1] - 1), math.pi)
-        nominal = _against_nominal(nominal_rod, torn, a_start, arr, params, settings, J, n_fit, n_t,
-                                   exact_start, inputs, ports, lm, blocks)
-        why = "; the nominal rod does not: every law nominal" if nominal["nominal_fallback"] else ""
-        return replace(result(0, zero, math.inf, learned, math.nan, math.nan, note + why), **nominal)
+        floor = {} if nominal_rod is None else _against_nominal(
+            nominal_rod, torn, a_start, arr, params, settings, J, n_fit, n_t, exact_start, inputs, ports,
+            lm, blocks)
+        why = "; the nominal rod does not: every law nominal" if floor.get("nominal_fallback") else ""
+        return replace(result(0, zero, math.inf, learned, math.nan, math.nan,
+                              "the learned rod left the physical range on its own record" + why), **floor)
     fits, res, chosen, steps = sel  # rows of res: 0 the start alone, then each candidate offered
     offered = terms[:len(fits)]
     start_only = float(np.sqrt(np.mean(res[0] ** 2)))
