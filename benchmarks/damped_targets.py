@@ -42,7 +42,7 @@ def one(cfg: dict, case: str, root: Path) -> dict:
     d = root / case
     d.mkdir()
     material_data(cfg, case, str(d / "train.parquet"), str(d / "camera.parquet"), str(d / "test.parquet"))
-    lcfg = learn_config(cfg)
+    lcfg = learn_config(cfg, "full_state")
     table = read_measured(d / "train.parquet")
     params = model_params(table, lcfg)
     meas = validate_frame(table, case, params.L0, params.ds, ScreenSettings.from_config(lcfg["discovery"]))

@@ -52,7 +52,7 @@ def main() -> None:
     if case in CASES:
         cfg["materials_study"]["cases"][case] = CASES[case][0]
     truth = material_case_rod(cfg, case)
-    lc = learn_config(cfg)
+    lc = learn_config(cfg, "camera")
     st = camera.LearnSettings.from_config(lc["camera"]["learn"])
     table = read_measured(a.case_dir / "camera.parquet")
     params = model_params(table, lc)

@@ -21,6 +21,7 @@ from crgpr.learning.law_choice import (
     learned_or_nominal,
     nominal_choice,
     poly_design,
+    segment_weights,
     standin_departure,
 )
 from crgpr.learning.nominal import NOMINAL_LAWS, NominalLaw
@@ -158,14 +159,32 @@ def test_a_uniform_nonlinear_law_does_not_take_arclength_as_an_input():
     # rigid law in kappa would fit better per region; the spline in kappa leaves s nothing to add
     m_s = 0.06
     kappa, s, m = _bending_record(lambda k, s: m_s * np.tanh(EI * k / m_s))
-    c = arclength_dependence(kappa, s, m, 3, 8, 1, 10)
-    assert not c.richer, c
+    for s_degree, weights in ((1, "none"), (2, "segment")):
+        c = arclength_dependence(kappa, s, m, 3, 8, s_degree, 10, weights)
+        assert not c.richer, (s_degree, weights, c)
 
 
 def test_a_graded_rod_takes_arclength_as_an_input():
     kappa, s, m = _bending_record(lambda k, s: EI * (1.5 - s / L0) * k)  # EI(s) from 1.5 EI to 0.5 EI
-    c = arclength_dependence(kappa, s, m, 3, 8, 1, 10)
-    assert c.richer and c.heldout_mse_richer < 0.5 * c.heldout_mse_simple, c
+    for s_degree, weights in ((1, "none"), (2, "segment")):
+        c = arclength_dependence(kappa, s, m, 3, 8, s_degree, 10, weights)
+        assert c.richer and c.heldout_mse_richer < 0.5 * c.heldout_mse_simple, (s_degree, weights, c)
+
+
+def test_a_rod_soft_near_its_free_tip_takes_arclength_only_where_every_segment_counts_alike():
+    """EI uniform over the first half, then down to 0.4 EI at the tip, where the curvatures and
+    moments are a small fraction of the clamp's: unweighted, the clamp's errors decide and the
+    variation is not seen; with each segment's samples weighted by 1 / rms of its moments
+    (``segment_weights``) it is."""
+    def law(k, s):
+        return EI * np.where(s < 0.5 * L0, 1.0, 1.0 - 1.2 * (s / L0 - 0.5)) * k
+    kappa, s, m = _bending_record(law, noise=2e-4)
+    assert not arclength_dependence(kappa, s, m, 3, 8, 2, 10, "none").richer
+    c = arclength_dependence(kappa, s, m, 3, 8, 2, 10, "segment")
+    assert c.richer, c
+    w = segment_weights(s, m)
+    for v in np.unique(s):
+        assert np.sqrt(np.mean((w * m)[s == v] ** 2)) == pytest.approx(1.0)
 
 
 def test_a_stiff_section_away_from_the_clamp_is_not_the_nominal_law():

@@ -288,6 +288,7 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                              "too noisy to learn a bending law")
     along_s = bending_arclength(arr, params, cam, masks.get("obj_m"),
                                 features == "objective" and "obj_m" in trained and m_cols is not None,
+                                kind == "positions",
                                 ((grey["law_choice"] or {}).get("m") or {}).get("decided_by") == "along_s")
     rest = None
     if sym == "auto" and features == "objective" and "obj_m" in trained:

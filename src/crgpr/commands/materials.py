@@ -74,11 +74,12 @@ def material_data(cfg: dict[str, Any], case: str, train_out: str, camera_out: st
     write_parquet(pd.concat(frames, ignore_index=True), test_out, meta)
 
 
-def learn_config(cfg: dict[str, Any]) -> dict[str, Any]:
-    """The config ``crgpr learn`` sees in the study: ``commands.learn.capped_config`` with the
-    study's ``n_train_max``, ``n_hyper_max`` and ``camera_n_t_out`` (its run-time budget)."""
+def learn_config(cfg: dict[str, Any], source: str) -> dict[str, Any]:
+    """The config ``crgpr learn`` sees in the study for one input (``INPUTS``):
+    ``commands.learn.capped_config`` with the study's ``n_train_max`` and ``n_hyper_max`` of that
+    input and ``camera_n_t_out`` (its run-time budget)."""
     ms = cfg["materials_study"]
-    return capped_config(cfg, ms["n_train_max"], ms["n_hyper_max"], ms["camera_n_t_out"])
+    return capped_config(cfg, ms["n_train_max"][source], ms["n_hyper_max"][source], ms["camera_n_t_out"])
 
 def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str) -> None:
     """Rule ``material_learn``: ``crgpr learn`` (objective features) on the full-state record
@@ -86,7 +87,7 @@ def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str
     ms = cfg["materials_study"]
     if source not in INPUTS:
         raise ValueError(f"input {source!r}: expected one of {INPUTS}")
-    learn(measured, out_dir, learn_config(cfg), "objective",
+    learn(measured, out_dir, learn_config(cfg, source), "objective",
           str(ms["prefilter"] if source == "full_state" else ms["camera_prefilter"]))
 
 

@@ -206,19 +206,41 @@ def learned_or_nominal(X: np.ndarray, y: np.ndarray, nominal: np.ndarray, degree
                    standin_scale=sd if sd > 0 else 1.0)
 
 
+def segment_weights(s: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Weight of every sample: 1 / rms of the moment targets of its segment (the samples of one
+    segment share their arclength s), so that each segment's error counts alike in the held-out
+    comparison, not in proportion to its moments (largest at the clamp)."""
+    s, m = np.asarray(s, dtype=float).ravel(), np.asarray(m, dtype=float).ravel()
+    _, seg = np.unique(s, return_inverse=True)
+    ms = np.bincount(seg, weights=m**2) / np.bincount(seg)
+    rms = np.sqrt(ms)
+    w = np.zeros_like(rms)
+    w[rms > 0] = 1.0 / rms[rms > 0]
+    return w[seg]
+
+
 def arclength_dependence(kappa: np.ndarray, s: np.ndarray, m: np.ndarray, degree: int, knots: int,
-                         s_degree: int, blocks: int) -> HeldoutChoice:
+                         s_degree: int, blocks: int, weights: str) -> HeldoutChoice:
     """A uniform bending law m(kappa) (``spline_basis(kappa, degree, knots)``) against one whose
     spline coefficients are polynomials of degree ``s_degree`` in the arclength s; ``richer`` =
-    give the law s as an input."""
+    give the law s as an input. ``weights``: ``segment`` (weighted least squares and errors with
+    ``segment_weights``: a law varying near the free tip, whose moments are small, is seen as one
+    varying near the clamp is) or ``none``."""
     K = spline_basis(kappa, degree, knots)
     S = poly_design(s, s_degree)
     KS = np.einsum("ni,nj->nij", K, S).reshape(K.shape[0], -1)
-    return compare_heldout(m, K, KS, blocks, degree)
+    if weights == "none":
+        return compare_heldout(m, K, KS, blocks, degree)
+    if weights != "segment":
+        raise ValueError(f"arclength weights {weights!r}: expected segment or none")
+    w = segment_weights(s, m)
+    y = np.asarray(m, dtype=float).ravel() * w
+    return compare_heldout(y, K * w[:, None], KS * w[:, None], blocks, degree)
 
 
 def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[str, Any],
-                      segments: np.ndarray | None, applicable: bool, shown: bool = False) -> dict[str, Any]:
+                      segments: np.ndarray | None, applicable: bool, from_positions: bool,
+                      shown: bool = False) -> dict[str, Any]:
     """Whether the learned bending law m takes the arclength s as an input (manifest
     ``bending_arclength``): ``camera.learn.bending_arclength`` always / never, or with auto where
     the law's samples vary along the rod by the held-out time blocks
@@ -235,8 +257,10 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
     if setting == "auto":
         X, m = training_data(arr, params, "obj_m", None, segments)
         S = sample_arclength(params, segments, arr["x"].shape[0])
+        kind = "positions" if from_positions else "full_state"
         choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
-                                      int(cam["choice_s_degree"]), int(cam["choice_blocks"])).to_dict()
+                                      int(cam["choice_s_degree"][kind]), int(cam["choice_blocks"]),
+                                      str(cam["choice_s_weights"][kind])).to_dict()
     used = setting == "always" or (setting == "auto" and (shown or (choice is not None and choice["richer"])))
     return {"setting": setting, "used": bool(used), "choice": choice, "from_law_choice": bool(shown)}
 
