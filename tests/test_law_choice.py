@@ -207,6 +207,12 @@ def test_schema_rejects_an_unknown_arclength_setting():
     cfg["camera"]["learn"]["bending_arclength"] = "sometimes"
     with pytest.raises(ConfigError, match="bending_arclength"):
         validate_schema(cfg)
+    cfg = copy.deepcopy(load_config(SMOKE))
+    cfg["camera"]["learn"]["choice_s_weights"]["positions"] = "clamp"
+    with pytest.raises(ConfigError, match="choice_s_weights"):
+        validate_schema(cfg)
+    with pytest.raises(ValueError, match="arclength weights"):
+        arclength_dependence(np.ones(40), np.arange(40.0), np.ones(40), 3, 0, 1, 2, "clamp")
 
 
 PROFILE = [[0.0, 1.5], [1.0, 0.5]]  # EI(s) = EI (1.5 - s / L0)

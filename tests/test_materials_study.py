@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from paper_rod import paper_rod
 
-from crgpr.commands.materials import COLUMNS, INPUTS
+from crgpr.commands.materials import COLUMNS, INPUTS, learn_config
 from crgpr.config import ConfigError, load_config, material_case_rod, rod_params
 from crgpr.physics.material import Material
 from crgpr.physics.params import RodParams
@@ -111,6 +111,23 @@ def test_a_case_overlay_with_a_bad_law_is_one_config_error_naming_the_case():
         load_config(SMOKE, {"materials_study": {"cases": {"bad": {"stiffness": 2.0}}}})
     with pytest.raises(ConfigError, match=r"materials_study\.camera_rate_hz"):
         load_config(SMOKE, {"materials_study": {"camera_rate_hz": 300.0}})
+
+
+def test_each_input_learns_under_its_own_caps_and_a_scalar_cap_is_one_config_error():
+    """The camera models learn as ``crgpr learn`` does by default (config.yaml: its own n_train,
+    n_hyper and frames); the full-state models under the study's run-time caps."""
+    cfg = load_config(ROOT / "config.yaml")
+    gm = cfg["gradient_models"]
+    cam = learn_config(cfg, "camera")
+    assert cam["gradient_models"] == gm
+    assert cam["camera"]["learn"]["n_t_out"] == cfg["camera"]["learn"]["n_t_out"]
+    full = learn_config(cfg, "full_state")["gradient_models"]
+    ms = cfg["materials_study"]
+    assert full["n_hyper"] == min(gm["n_hyper"], ms["n_hyper_max"]["full_state"])
+    assert all(spec["n_train"] == min(gm["objective_models"][k]["n_train"], ms["n_train_max"]["full_state"])
+               for k, spec in full["objective_models"].items())
+    with pytest.raises(ConfigError, match=r"materials_study\.n_train_max"):
+        load_config(SMOKE, {"materials_study": {"n_train_max": 600}})
 
 
 def test_a_case_is_the_linear_material_plus_its_keys_whatever_the_configs_own_material():
