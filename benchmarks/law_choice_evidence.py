@@ -82,8 +82,8 @@ def main() -> None:
     S = np.broadcast_to(segment_arclength(params.N, params.ds), (arr["x"].shape[0], params.N))
     S = S[:, mask].ravel()
     for knots in (0, int(cam["choice_knots"])):
-        c = arclength_dependence(X[:, 0], S, y, deg, knots, int(cam["choice_s_degree"][kind]), blocks,
-                                 str(cam["choice_s_weights"][kind]))
+        s_degree, weights = cam["choice_s_tests"][kind][0]
+        c = arclength_dependence(X[:, 0], S, y, deg, knots, int(s_degree), blocks, str(weights))
         rows.append({"quantity": f"arclength_dependence, {knots} knots", "law": "m", **c.to_dict()})
     if args.models:
         tab = pd.read_parquet(Path(args.models) / "laws.parquet")

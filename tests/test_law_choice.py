@@ -208,8 +208,8 @@ def test_schema_rejects_an_unknown_arclength_setting():
     with pytest.raises(ConfigError, match="bending_arclength"):
         validate_schema(cfg)
     cfg = copy.deepcopy(load_config(SMOKE))
-    cfg["camera"]["learn"]["choice_s_weights"]["positions"] = "clamp"
-    with pytest.raises(ConfigError, match="choice_s_weights"):
+    cfg["camera"]["learn"]["choice_s_tests"]["positions"] = [[2, "clamp"]]
+    with pytest.raises(ConfigError, match="choice_s_tests"):
         validate_schema(cfg)
     with pytest.raises(ValueError, match="arclength weights"):
         arclength_dependence(np.ones(40), np.arange(40.0), np.ones(40), 3, 0, 1, 2, "clamp")

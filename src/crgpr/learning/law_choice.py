@@ -249,20 +249,24 @@ def bending_arclength(arr: dict[str, np.ndarray], params: RodParams, cam: dict[s
     subset without all five inputs) of a learned obj_m. ``shown``: the law was learned because a
     stand-in varying along the rod predicted the held-out blocks better than the nominal law
     (``grey_box``, ``law_choice.m.decided_by``): the data have shown it varies along s, and with
-    auto it takes s."""
+    auto it takes s. The comparisons are ``camera.learn.choice_s_tests`` of the record's kind
+    (positions or full state), each ``[s_degree, weights]``; s is taken where any of them shows the
+    law varying along s (``choice``: the first that does, else the first; ``choices``: all)."""
     setting = str(cam["bending_arclength"])
     if not applicable:
         return {"setting": setting, "used": False, "choice": None}
-    choice = None
+    choice, choices = None, []
     if setting == "auto":
         X, m = training_data(arr, params, "obj_m", None, segments)
         S = sample_arclength(params, segments, arr["x"].shape[0])
-        kind = "positions" if from_positions else "full_state"
-        choice = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
-                                      int(cam["choice_s_degree"][kind]), int(cam["choice_blocks"]),
-                                      str(cam["choice_s_weights"][kind])).to_dict()
+        for s_degree, weights in cam["choice_s_tests"]["positions" if from_positions else "full_state"]:
+            c = arclength_dependence(X[:, 0], S, m, int(cam["choice_degree"]), int(cam["choice_knots"]),
+                                     int(s_degree), int(cam["choice_blocks"]), str(weights)).to_dict()
+            choices.append({**c, "s_degree": int(s_degree), "weights": str(weights)})
+        choice = next((c for c in choices if c["richer"]), choices[0])
     used = setting == "always" or (setting == "auto" and (shown or (choice is not None and choice["richer"])))
-    return {"setting": setting, "used": bool(used), "choice": choice, "from_law_choice": bool(shown)}
+    return {"setting": setting, "used": bool(used), "choice": choice, "choices": choices,
+            "from_law_choice": bool(shown)}
 
 
 def sample_arclength(params: RodParams, segments: np.ndarray | None, n_t: int) -> np.ndarray:
