@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from paper_rod import paper_rod
 
-from crgpr.commands.materials import COLUMNS, INPUTS, learn_config
+from crgpr.commands.materials import COLUMNS, INPUTS, LEARN_DEFAULTS, learn_config
 from crgpr.config import ConfigError, load_config, material_case_rod, rod_params
 from crgpr.physics.material import Material
 from crgpr.physics.params import RodParams
@@ -113,19 +113,25 @@ def test_a_case_overlay_with_a_bad_law_is_one_config_error_naming_the_case():
         load_config(SMOKE, {"materials_study": {"camera_rate_hz": 300.0}})
 
 
-def test_each_input_learns_under_its_own_caps_and_a_scalar_cap_is_one_config_error():
-    """The camera models learn as ``crgpr learn`` does by default (config.yaml: its own n_train,
-    n_hyper and frames); the full-state models under the study's run-time caps."""
+def test_each_input_learns_under_its_own_caps_the_defaults_source_under_none_and_a_scalar_cap_is_an_error():
+    """In ``all`` both inputs learn under the study's run-time caps (config.yaml); the source
+    ``camera_defaults`` (target ``sweeps``) learns the camera record as ``crgpr learn`` does with
+    the config as it is: its own n_train, n_hyper and frames."""
     cfg = load_config(ROOT / "config.yaml")
     gm = cfg["gradient_models"]
-    cam = learn_config(cfg, "camera")
-    assert cam["gradient_models"] == gm
-    assert cam["camera"]["learn"]["n_t_out"] == cfg["camera"]["learn"]["n_t_out"]
-    full = learn_config(cfg, "full_state")["gradient_models"]
     ms = cfg["materials_study"]
-    assert full["n_hyper"] == min(gm["n_hyper"], ms["n_hyper_max"]["full_state"])
-    assert all(spec["n_train"] == min(gm["objective_models"][k]["n_train"], ms["n_train_max"]["full_state"])
-               for k, spec in full["objective_models"].items())
+    for source in INPUTS:
+        capped = learn_config(cfg, source)
+        assert capped["gradient_models"]["n_hyper"] == min(gm["n_hyper"], ms["n_hyper_max"][source])
+        assert all(spec["n_train"] == min(gm[group][k]["n_train"], ms["n_train_max"][source])
+                   for group in ("models", "objective_models")
+                   for k, spec in capped["gradient_models"][group].items())
+        assert capped["camera"]["learn"]["n_t_out"] == ms["camera_n_t_out"]
+    assert learn_config(cfg, "camera")["gradient_models"] != gm  # the caps bind in config.yaml
+    defaults = learn_config(cfg, LEARN_DEFAULTS)
+    assert defaults == cfg and defaults is not cfg
+    with pytest.raises(ValueError, match="camera_raw"):
+        learn_config(cfg, "camera_raw")
     with pytest.raises(ConfigError, match=r"materials_study\.n_train_max"):
         load_config(SMOKE, {"materials_study": {"n_train_max": 600}})
 

@@ -2,10 +2,13 @@
 # `materials_study.cases` (a rod.material overlay of the true rod), crgpr learn on its full state and on
 # 1 mm camera positions of its release at theta0_deg, the learned and the nominal rod rolled out at the
 # test angles against the true rod, and the learned bending law against the true one
-# (results/tables/material_laws.csv and results/figures/material_<case>.png, in `all`).
+# (results/tables/material_laws.csv and results/figures/material_<case>.png, in `all`), the models
+# learned under the study's run-time caps; the camera records learned with crgpr learn's own settings
+# instead (source camera_defaults): results/tables/material_laws_camera_defaults.csv, in `sweeps`.
 
 MATERIAL_CASES = list(config["materials_study"]["cases"])
 MATERIAL_INPUTS = ["full_state", "camera"]
+MATERIAL_SOURCES = [*MATERIAL_INPUTS, "camera_defaults"]
 _MATERIAL_SIM = ("simulation.dt_s", "simulation.record_every", "materials_study.scheme")
 _MATERIAL_REC = ("seed", "rod", *_MATERIAL_SIM, "materials_study.theta0_deg", "materials_study.t_end_s",
                  "materials_study.test_deg", "materials_study.rollout_t_end_s", "materials_study.camera_rate_hz",
@@ -46,7 +49,7 @@ rule material_learn:
         directory(f"{RESULTS}/materials/{{case}}/models/{{source}}"),
     wildcard_constraints:
         case=_one_of(MATERIAL_CASES),
-        source=_one_of(MATERIAL_INPUTS),
+        source=_one_of(MATERIAL_SOURCES),
     params:
         cfg=cfg_params("seed", "rod", "discovery.min_rate_hz", "discovery.min_samples", "discovery.outlier_k",
                        "discovery.outlier_min_m", "discovery.geometry_tol", "gradient_models", "camera.learn",
@@ -79,7 +82,7 @@ rule material_score:
         tips=f"{RESULTS}/materials/{{case}}/tips_{{source}}.parquet",
     wildcard_constraints:
         case=_one_of(MATERIAL_CASES),
-        source=_one_of(MATERIAL_INPUTS),
+        source=_one_of(MATERIAL_SOURCES),
     params:
         cfg=lambda wc: cfg_params("seed", "rod", *_MATERIAL_SIM, "camera.learn.law_table",
                                   "materials_study.test_deg", "materials_study.rollout_t_end_s",
@@ -130,5 +133,26 @@ rule material_laws:
         "../scripts/material_laws.py"
 
 
+rule material_laws_defaults:
+    input:
+        code=code_closure("material_laws_defaults.py"),
+        scores=expand(f"{RESULTS}/materials/{{case}}/scores_camera_defaults.parquet", case=MATERIAL_CASES),
+    output:
+        table=f"{RESULTS}/tables/material_laws_camera_defaults.csv",
+    log:
+        "logs/materials/laws_camera_defaults.log",
+    benchmark:
+        "benchmarks/materials/laws_camera_defaults.tsv"
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    conda:
+        ENV
+    script:
+        "../scripts/material_laws_defaults.py"
+
+
+SWEEP_TARGETS.append(f"{RESULTS}/tables/material_laws_camera_defaults.csv")
 ALL_TARGETS.extend([f"{RESULTS}/tables/material_laws.csv",
                     *expand(f"{RESULTS}/figures/material_{{case}}.png", case=MATERIAL_CASES)])

@@ -20,14 +20,22 @@ from crgpr.physics.simulate import trajectory_from_frame
 from crgpr.report.materials import material_figure
 
 
+def material_table(scores: list[str], out_csv: str) -> pd.DataFrame:
+    """The score rows of ``material_score`` (``COLUMNS``), in the order given, written to
+    ``out_csv``: ``material_laws.csv``, and rule ``material_laws_defaults``'s table of the camera
+    records learned with ``crgpr learn``'s own settings (target ``sweeps``)."""
+    table = pd.concat([read_parquet(p) for p in scores], ignore_index=True)[list(COLUMNS)]
+    write_csv(table, out_csv)
+    return table
+
+
 def material_laws(cfg: dict[str, Any], cases: list[str], scores: list[str], tips: list[str],
                   model_dirs: list[str], trains: list[str], out_csv: str, figures: list[str]) -> pd.DataFrame:
     """Rule ``material_laws``: ``material_laws.csv`` (the score rows, case by case, input by input)
     and one figure per case (``report.materials.material_figure``). ``scores``, ``tips`` and
     ``model_dirs`` are ordered case-major over ``INPUTS``; ``trains`` and ``figures`` by case."""
     n = len(INPUTS)
-    table = pd.concat([read_parquet(p) for p in scores], ignore_index=True)[list(COLUMNS)]
-    write_csv(table, out_csv)
+    table = material_table(scores, out_csv)
     nominal = rod_params(cfg)
     for i, (case, train, fig) in enumerate(zip(cases, trains, figures, strict=True)):
         truth = material_case_rod(cfg, case)

@@ -14,6 +14,7 @@ and scores the learned bending law against the true one (``report.metrics.law_ac
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import zlib
@@ -38,7 +39,9 @@ from crgpr.report.metrics import accuracy, law_accuracy
 
 log = logging.getLogger(__name__)
 
-INPUTS: tuple[str, ...] = ("full_state", "camera")
+INPUTS: tuple[str, ...] = ("full_state", "camera")  # the study's inputs, learned under its run-time caps
+LEARN_DEFAULTS = "camera_defaults"  # the camera record learned with crgpr learn's own settings (no caps)
+SOURCES: tuple[str, ...] = (*INPUTS, LEARN_DEFAULTS)
 COLUMNS: tuple[str, ...] = ("case", "input", "theta0_deg", "rmse_theta", "tip_rmse_over_L",
                             "nominal_rmse_theta", "ratio_to_nominal", "law_rmse", "law_band_coverage")
 TIP_COLUMNS: tuple[str, ...] = ("model", "theta0_deg", "t", "tip_x", "tip_y")
@@ -75,18 +78,22 @@ def material_data(cfg: dict[str, Any], case: str, train_out: str, camera_out: st
 
 
 def learn_config(cfg: dict[str, Any], source: str) -> dict[str, Any]:
-    """The config ``crgpr learn`` sees in the study for one input (``INPUTS``):
-    ``commands.learn.capped_config`` with the study's ``n_train_max`` and ``n_hyper_max`` of that
-    input and ``camera_n_t_out`` (its run-time budget)."""
+    """The config ``crgpr learn`` sees in the study for one source (``SOURCES``): for an input of
+    ``INPUTS``, ``commands.learn.capped_config`` with the study's ``n_train_max`` and
+    ``n_hyper_max`` of that input and ``camera_n_t_out`` (the run-time budget of ``all``); for
+    ``LEARN_DEFAULTS``, the config as it is: what ``crgpr learn`` does with it (target ``sweeps``)."""
+    if source not in SOURCES:
+        raise ValueError(f"input {source!r}: expected one of {SOURCES}")
+    if source == LEARN_DEFAULTS:
+        return copy.deepcopy(cfg)
     ms = cfg["materials_study"]
     return capped_config(cfg, ms["n_train_max"][source], ms["n_hyper_max"][source], ms["camera_n_t_out"])
 
 def material_learn(cfg: dict[str, Any], source: str, measured: str, out_dir: str) -> None:
     """Rule ``material_learn``: ``crgpr learn`` (objective features) on the full-state record
-    (prefilter ``materials_study.prefilter``) or the camera record (``camera_prefilter``)."""
+    (prefilter ``materials_study.prefilter``) or the camera record (``camera_prefilter``), with
+    the config of ``learn_config``."""
     ms = cfg["materials_study"]
-    if source not in INPUTS:
-        raise ValueError(f"input {source!r}: expected one of {INPUTS}")
     learn(measured, out_dir, learn_config(cfg, source), "objective",
           str(ms["prefilter"] if source == "full_state" else ms["camera_prefilter"]))
 
