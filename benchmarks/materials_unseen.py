@@ -9,7 +9,8 @@
 six cases do not contain (another law parameter, a local defect, a combination of laws, another
 release angle). For each, the study's own rules run on it as they run on a study case
 (``commands.materials.material_data`` at the case's release angle, then ``material_learn`` and
-``material_score`` for the full state and the 1 mm camera record, the config's
+``material_score`` for the full state, under the study's caps, and the 1 mm camera record, with
+``crgpr learn``'s own settings as in the study's ``sweeps`` table; the config's
 ``materials_study`` settings otherwise); one row per (case, input) goes to ``--csv``: the mean
 and worst RMSE(theta) over the study's six test angles, the worst ``ratio_to_nominal``,
 ``law_rmse`` and ``law_band_coverage``, which laws stayed nominal, the rest curvature used, the
@@ -22,7 +23,9 @@ stiffness of the bending law as rolled out over its covered curvatures in units 
 and the learn wall time. ``--keep DIR`` keeps
 the records and models there (``--rescore``: score the kept ones again after a change of the
 scoring, learning nothing; ``learn_seconds`` then comes from the rows already in ``--csv``).
-``--set KEY=VALUE`` (repeatable; a dotted key of the config, the
+``--capped``: the camera records learned under the study's run-time caps (as ``all`` learns
+them) instead of ``crgpr learn``'s own settings. ``--set KEY=VALUE`` (repeatable; a dotted key
+of the config, the
 value read as YAML) runs a variant of the config; its rows carry the overrides in a column
 ``overrides``, and ``--append`` adds them to an existing ``--csv``. ``--case NAME MATERIAL
 THETA0`` (repeatable) runs a rod of your own through the same rules: ``MATERIAL`` a
@@ -53,6 +56,7 @@ import yaml
 
 from crgpr.commands.camera import camera_frame
 from crgpr.commands.materials import (
+    LEARN_DEFAULTS,
     camera_seed,
     material_data,
     material_learn,
@@ -135,12 +139,14 @@ def grid_floor(cfg: dict[str, Any], case: str, test: Path) -> float:
 
 def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,
              inputs: tuple[str, ...] = INPUTS, reuse: bool = False,
-             rescore: dict[tuple[str, str], float] | None = None) -> list[dict[str, Any]]:
+             rescore: dict[tuple[str, str], float] | None = None,
+             capped: bool = False) -> list[dict[str, Any]]:
     """The study's rules on one case in ``root``: its records (from a ``refine`` times finer true
     rod where > 1; ``reuse``: the records kept in ``root`` from an earlier run, where all three
     are there), then ``inputs`` learned and scored. ``rescore``: the models kept in ``root`` are
     scored again, not learned; the mapping (case, input) -> learn seconds of the earlier run
-    (NaN where absent) fills ``learn_seconds``."""
+    (NaN where absent) fills ``learn_seconds``. ``capped``: the camera record under the study's
+    run-time caps (the source ``camera`` of ``all``), not ``crgpr learn``'s own settings."""
     material, theta0 = CASES[case]
     c = copy.deepcopy(cfg)
     c["materials_study"]["cases"][case] = material
@@ -161,7 +167,9 @@ def run_case(cfg: dict[str, Any], case: str, root: Path, refine: int = 1,
         t0 = time.perf_counter()
         if rescore is None:
             record = d / ("train.parquet" if source == "full_state" else "camera.parquet")
-            material_learn(c, source, str(record), str(d / f"model_{source}"))
+            # the camera record as crgpr learn learns it by default (the study's source camera_defaults)
+            learned = LEARN_DEFAULTS if source == "camera" and not capped else source
+            material_learn(c, learned, str(record), str(d / f"model_{source}"))
         seconds = time.perf_counter() - t0 if rescore is None else rescore.get((case, source), float("nan"))
         material_score(c, case, source, str(d / f"model_{source}"), str(d / "train.parquet"),
                        str(d / "test.parquet"), str(d / f"scores_{source}.parquet"),
@@ -231,6 +239,8 @@ def main() -> None:
     ap.add_argument("--keep", default=None, help="directory to keep the records and models in")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     ap.add_argument("--append", action="store_true", help="add the rows to an existing --csv")
+    ap.add_argument("--capped", action="store_true",
+                    help="camera records under the study's run-time caps, as `all` learns them")
     ap.add_argument("--truth-refine", type=int, default=1, metavar="K",
                     help="records from a true rod with K times more segments (module docstring)")
     ap.add_argument("--inputs", default=",".join(INPUTS), help="comma-separated inputs to learn from")
@@ -270,7 +280,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         for case in names:
-            rows += run_case(cfg, case, root, args.truth_refine, inputs, args.reuse or args.rescore, rescore)
+            rows += run_case(cfg, case, root, args.truth_refine, inputs, args.reuse or args.rescore, rescore,
+                             args.capped)
     out = pd.DataFrame(rows)
     if sets:
         out["overrides"] = json.dumps(sets, sort_keys=True)
