@@ -52,8 +52,8 @@ rule all:
 
 
 # Studies beyond the budget of `all` (the oracle ablation, cr_gpr_paper_hyp and cr_gpr_collocated in
-# accuracy_studies.parquet, the CR-GPR sensitivity table, the camera noise ablation):
-# `snakemake -j2 sweeps`.
+# accuracy_studies.parquet, the CR-GPR sensitivity table, the camera noise ablation, the materials
+# study's camera records learned with crgpr learn's own settings): `snakemake -j2 sweeps`.
 rule sweeps:
     input:
         SWEEP_TARGETS,
