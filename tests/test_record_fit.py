@@ -129,6 +129,21 @@ def test_a_profile_along_s_is_positive_and_scales_each_segment_by_its_own_factor
     assert np.allclose(warp_sd(X[0, :, 0], s_rel, warp, C), spread, rtol=0.1)
 
 
+def test_a_kept_fit_without_warp_or_profile_terms_has_no_factor_band_but_its_truncation():
+    """A record fit that keeps only its start (or a damping) has no warp or profile coefficient:
+    the factor is 1 and its sd 0, whatever covariance of other parameters it records; a
+    truncation estimate still adds its own part."""
+    kappa = np.linspace(-20.0, 20.0, 7)
+    s_rel = segment_positions(7)
+    warp = (0.0, 30.0, np.zeros(0), np.zeros(0), np.zeros(0))
+    cov = np.diag([1e-4, 1e-4])  # e.g. the start's modes: not the factor's
+    assert np.array_equal(law_factor(kappa, s_rel, warp), np.ones(7))
+    assert np.array_equal(warp_sd(kappa, s_rel, warp, cov), np.zeros(7))
+    assert np.array_equal(warp_sd(kappa, None, warp, cov), np.zeros(7))
+    d = np.array([0.01, 0.002])
+    assert np.allclose(warp_sd(kappa, s_rel, warp, cov, d), np.abs(warp_factor(kappa, 0.0, 30.0, d) - 1.0))
+
+
 def test_an_admissible_warp_keeps_the_laws_sign_over_the_covered_range():
     assert admissible(np.array([[0.1, 0.2], [-0.5, 0.3], [0.0, 0.0]])).all()
     assert not admissible(np.array([[-0.012, -84.4, -1.7e5]]))[0]  # reverses the law near |u| = 1

@@ -138,8 +138,11 @@ def warp_sd(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp, cov: np.nda
         v = profile_factor(sr.ravel(), np.asarray(warp[3], dtype=float)[:S]).reshape(u2.shape)
         P = _legendre(sr, S)
         g += [w * P[..., j] for j in range(S)]
-    G = np.stack(g, axis=-1) * v[..., None]
-    var = np.maximum(np.einsum("...k,kl,...l->...", G, C, G), 0.0)
+    if g:
+        G = np.stack(g, axis=-1) * v[..., None]
+        var = np.maximum(np.einsum("...k,kl,...l->...", G, C, G), 0.0)
+    else:  # no warp or profile coefficient kept (a record fit that kept the start or a damping alone)
+        var = np.zeros_like(u2)
     if truncation is not None and np.asarray(truncation).size:
         d = warp_factor(kappa, warp[0], warp[1], np.asarray(truncation, dtype=float)) - 1.0
         var = var + (d * v) ** 2
