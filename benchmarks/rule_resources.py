@@ -105,7 +105,7 @@ def literal_length(rule: Rule) -> int:
 
 def most_specific(owners: list[Rule]) -> list[Rule]:
     """Of the rules whose benchmark pattern matches one file, the one with the longest literal
-    part (``rollouts/cr_gpr_objective_camera/{angle}`` over ``rollouts/{method}/{angle}``: the
+    part (``rollouts/cr_gpr_objective_camera`` over ``rollouts/{method}``: the
     wildcard constraints that keep Snakemake's rules apart are code, not read here); all of
     them if that is not unique."""
     if len(owners) < 2:

@@ -60,17 +60,19 @@ def test_blackbox_trains_and_rolls_out_on_the_smoke_config(trained, tmp_path):
     params = rod_params(cfg)
     X = gps[0].X
     np.testing.assert_allclose(gps[0].predict(X), X[:, 6] / params.rhoA, rtol=0.05, atol=0.02)
-    angle = cfg["angles"]["test_deg"][0]
-    out = tmp_path / f"{angle}.parquet"
-    blackbox_rollout(cfg, str(d / "models"), str(d / "summary.json"), angle, str(out))
-    df = read_parquet(out, required=TRAJECTORY_COLUMNS)
+    angles = list(cfg["angles"]["test_deg"])  # every test angle in one call, one file each
+    outs = [str(tmp_path / f"{a}.parquet") for a in angles]
+    blackbox_rollout(cfg, str(d / "models"), str(d / "summary.json"), angles, outs)
     n_t = sim_settings(cfg).n_records
-    assert len(df) == n_t * (params.N + 1)
-    assert np.all(np.isfinite(df[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy()))
-    meta = read_metadata(out)
-    assert meta["method"] == "blackbox_gp" and "diverged" in meta
-    base = df[df["node"] == 0]
-    assert np.allclose(base[["x", "y", "p_x", "p_y", "p_theta"]], 0.0)
+    for angle, out in zip(angles, outs, strict=True):
+        df = read_parquet(out, required=TRAJECTORY_COLUMNS)
+        assert len(df) == n_t * (params.N + 1)
+        assert np.all(np.isfinite(df[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy()))
+        meta = read_metadata(out)
+        assert meta["method"] == "blackbox_gp" and "diverged" in meta and meta["theta0_deg"] == angle
+        np.testing.assert_allclose(df[df["t"] == 0]["theta"], np.radians(angle), atol=1e-9)
+        base = df[df["node"] == 0]
+        assert np.allclose(base[["x", "y", "p_x", "p_y", "p_theta"]], 0.0)
 
 
 def test_divergence_is_recorded_and_the_state_frozen(trained, monkeypatch):

@@ -66,7 +66,9 @@ def test_benchmark_files_map_to_exactly_one_rule():
         "benchmarks/ground_truth/125.tsv": "ground_truth",
         "benchmarks/models/gp/dH_dtheta.tsv": "gradient_model",
         "benchmarks/figures/cr_gpr_objective_125.tsv": "figures_crgpr",
-        "benchmarks/baselines/pinn_rollout/pinn_data_8/60.tsv": "pinn_rollout",
+        "benchmarks/baselines/pinn_rollout/pinn_data_8.tsv": "pinn_rollout",
+        "benchmarks/baselines/blackbox_rollout.tsv": "blackbox_rollout",
+        "benchmarks/rollouts/cr_gpr_objective.tsv": "rollout",
         "benchmarks/discovery/run_tip_mass.tsv": "discovery_run",
         "benchmarks/uq/cr_gpr_objective/samples/obj_m.tsv": "uq_samples",
         "benchmarks/uq/cr_gpr/rollout.tsv": "uq_rollout",
@@ -254,16 +256,18 @@ def test_slurm_script_skips_with_one_line_where_it_cannot_run(tmp_path):
 
 
 def test_benchmark_file_matching_two_patterns_goes_to_the_more_specific_rule():
-    generic = rule_resources.Rule("rollout", "", benchmark="benchmarks/rollouts/{method}/{angle}.tsv")
+    generic = rule_resources.Rule("rollout", "", benchmark="benchmarks/rollouts/{method}.tsv")
     camera = rule_resources.Rule("camera_rollout", "",
-                                 benchmark="benchmarks/rollouts/cr_gpr_objective_camera/{angle}.tsv")
-    path = "benchmarks/rollouts/cr_gpr_objective_camera/125.tsv"
+                                 benchmark="benchmarks/rollouts/cr_gpr_objective_camera.tsv")
+    path = "benchmarks/rollouts/cr_gpr_objective_camera.tsv"
     matching = [r for r in (generic, camera) if r.pattern().match(path)]
     assert {r.name for r in matching} == {"rollout", "camera_rollout"}
     assert [r.name for r in rule_resources.most_specific(matching)] == ["camera_rollout"]
-    # the workflow's own rules: that file has one owner
+    # the workflow's own rules: both patterns match that file, and it goes to camera_rollout
     rules = rule_resources.parse_rules(ROOT / "workflow" / "rules")
-    assert [r.name for r in rules.values() if r.benchmark and r.pattern().match(path)] == ["camera_rollout"]
+    owners = [r for r in rules.values() if r.benchmark and r.pattern().match(path)]
+    assert {r.name for r in owners} == {"rollout", "camera_rollout"}
+    assert [r.name for r in rule_resources.most_specific(owners)] == ["camera_rollout"]
 
 
 @pytest.mark.parametrize(

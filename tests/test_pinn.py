@@ -13,7 +13,7 @@ from paper_rod import paper_rod
 from crgpr.baselines import pinn
 from crgpr.commands.pinn import pinn_rollout, pinn_train
 from crgpr.config import load_config, rod_params, sim_settings
-from crgpr.io import read_parquet, write_parquet
+from crgpr.io import read_metadata, read_parquet, write_parquet
 from crgpr.physics.params import RodParams
 from crgpr.physics.rod import variational_derivative
 from crgpr.physics.simulate import TRAJECTORY_COLUMNS, simulate, trajectory_frame
@@ -164,15 +164,18 @@ def test_each_pinn_trains_and_predicts_on_the_smoke_config(smoke_data, tmp_path,
         assert np.all(hist["loss_data"] == 0)
     state = torch.load(w, weights_only=True)  # plain tensors only
     assert all(isinstance(v, torch.Tensor) for v in state.values())
-    angle = cfg["angles"]["test_deg"][0]
-    out = tmp_path / f"{angle}.parquet"
-    pinn_rollout(cfg, variant, str(w), paths[angle], angle, str(out))
-    pred = read_parquet(out, required=TRAJECTORY_COLUMNS)
-    gt = read_parquet(paths[angle])
-    assert list(pred.columns) == list(TRAJECTORY_COLUMNS)
-    assert len(pred) == len(gt)
-    np.testing.assert_allclose(pred["t"], gt["t"])
-    assert np.all(np.isfinite(pred[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy()))
+    angles = list(cfg["angles"]["test_deg"])  # every test angle in one call, one file each
+    outs = [str(tmp_path / f"{a}.parquet") for a in angles]
+    pinn_rollout(cfg, variant, str(w), [paths[a] for a in angles], angles, outs)
+    for angle, out in zip(angles, outs, strict=True):
+        pred = read_parquet(out, required=TRAJECTORY_COLUMNS)
+        gt = read_parquet(paths[angle])
+        assert list(pred.columns) == list(TRAJECTORY_COLUMNS)
+        assert len(pred) == len(gt)
+        np.testing.assert_allclose(pred["t"], gt["t"])
+        assert read_metadata(out)["theta0_deg"] == angle
+        np.testing.assert_allclose(pred[pred["t"] == 0]["theta"], np.radians(angle), atol=1e-6)
+        assert np.all(np.isfinite(pred[["x", "y", "theta", "p_x", "p_y", "p_theta"]].to_numpy()))
     base = pred[pred["node"] == 0]
     assert np.allclose(base[["x", "y"]], 0.0, atol=1e-6)
     assert np.allclose(base["theta"], math.radians(angle), atol=1e-6)

@@ -182,11 +182,11 @@ UPSTREAM = {"ground_truth", "pinn_train", "pinn_rollout", *DISCOVERY}
         # a setting of the GP prefilter: the gp branch only, not the finite-difference ablation
         ("hyper_points: 41", "hyper_points: 30",
          {"prefilter": 1, "gradient_model": N_GP_MODELS, "gradient_model_paper_hyp": 0,
-          "blackbox_train": 1, "blackbox_rollout": 2, "rollout": 2, "metrics": 1},
+          "blackbox_train": 1, "blackbox_rollout": 1, "rollout": 2, "metrics": 1},
          UPSTREAM),
         # the simulated time: every ground truth and everything downstream, not the discovery cases
         ("\n  dt_s: 1.0e-4\n  t_end_s: 0.2", "\n  dt_s: 1.0e-4\n  t_end_s: 0.25",
-         {"ground_truth": 4, "pinn_train": 3, "pinn_rollout": 6, "prefilter": 2,
+         {"ground_truth": 4, "pinn_train": 3, "pinn_rollout": 3, "prefilter": 2,
           "gradient_model": N_GP_MODELS + N_FD_MODELS, "gradient_model_paper_hyp": 0,
           "blackbox_train": 1, "rollout": 3, "metrics": 1},
          DISCOVERY),

@@ -33,15 +33,15 @@ rule blackbox_rollout:
         models=f"{RESULTS}/baselines/blackbox_gp/models",
         summary=f"{RESULTS}/baselines/blackbox_gp/summary.json",
     output:
-        f"{RESULTS}/rollouts/blackbox_gp/{{angle}}.parquet",
+        # all test angles in one job (the GPs loaded once)
+        expand(f"{RESULTS}/rollouts/blackbox_gp/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
     params:
         cfg=cfg_params("rod", "simulation"),
-    wildcard_constraints:
-        angle=r"-?\d+",
+        angles=config["angles"]["test_deg"],
     log:
-        "logs/baselines/blackbox_rollout/{angle}.log",
+        "logs/baselines/blackbox_rollout.log",
     benchmark:
-        "benchmarks/baselines/blackbox_rollout/{angle}.tsv"
+        "benchmarks/baselines/blackbox_rollout.tsv"
     threads: 1
     resources:
         mem_mb=500,

@@ -96,16 +96,17 @@ rule camera_rollout:
         code=code_closure("camera_rollout.py"),
         models=CAM_MODEL_DIR,
     output:
-        traj=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}.parquet",
-        energy=f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}_energy.parquet",
-    wildcard_constraints:
-        angle=r"-?\d+",
+        # all test angles in one job
+        traj=expand(f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
+        energy=expand(f"{RESULTS}/rollouts/{CAM_METHOD}/{{angle}}_energy.parquet",
+                      angle=config["angles"]["test_deg"]),
     params:
         cfg={"simulation": config["simulation"]},
+        angles=config["angles"]["test_deg"],
     log:
-        f"logs/rollouts/{CAM_METHOD}/{{angle}}.log",
+        f"logs/rollouts/{CAM_METHOD}.log",
     benchmark:
-        "benchmarks/rollouts/cr_gpr_objective_camera/{angle}.tsv"
+        "benchmarks/rollouts/cr_gpr_objective_camera.tsv"
     threads: 1
     resources:
         mem_mb=500,

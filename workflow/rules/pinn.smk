@@ -46,18 +46,19 @@ rule pinn_rollout:
     input:
         code=code_closure("pinn_rollout.py"),
         weights=f"{RESULTS}/baselines/pinn/{{method}}.pt",
-        ground_truth=f"{RESULTS}/ground_truth/{{angle}}.parquet",
+        ground_truths=expand(f"{RESULTS}/ground_truth/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
     output:
-        f"{RESULTS}/rollouts/{{method}}/{{angle}}.parquet",
+        # all test angles of one variant in one job (one start of Python and torch)
+        expand(f"{RESULTS}/rollouts/{{{{method}}}}/{{angle}}.parquet", angle=config["angles"]["test_deg"]),
     params:
         cfg=cfg_params("rod", "simulation.t_end_s", "baselines.pinn"),
+        angles=config["angles"]["test_deg"],
     wildcard_constraints:
         method="|".join(PINN_VARIANTS),
-        angle=r"-?\d+",
     log:
-        "logs/baselines/pinn_rollout/{method}/{angle}.log",
+        "logs/baselines/pinn_rollout/{method}.log",
     benchmark:
-        "benchmarks/baselines/pinn_rollout/{method}/{angle}.tsv"
+        "benchmarks/baselines/pinn_rollout/{method}.tsv"
     threads: 1
     resources:
         mem_mb=1000,

@@ -47,24 +47,27 @@ def blackbox_train(cfg: dict[str, Any], prefiltered: str, out_dir: str, summary:
                 "seconds": time.perf_counter() - t0, "settings": st, "models": rows}, summary)
 
 
-def blackbox_rollout(cfg: dict[str, Any], model_dir: str, summary: str, angle: int, out: str) -> None:
-    """Rule ``blackbox_rollout``: integrate from the straight rod at ``angle`` deg."""
+def blackbox_rollout(cfg: dict[str, Any], model_dir: str, summary: str, angles: list[int],
+                     outs: list[str]) -> None:
+    """Rule ``blackbox_rollout``: integrate from the straight rod at each of ``angles`` deg, one
+    file of ``outs`` per angle (the GPs loaded once)."""
     params, settings = rod_params(cfg), sim_settings(cfg)
     meta = json.loads(Path(summary).read_text())
     gps = blackbox.load_models(model_dir)
-    t0 = time.perf_counter()
-    t, q, p, info = blackbox.rollout(gps, float(angle), params, settings, meta["theta_center"])
-    n_t, n_nodes, _ = q.shape
-    df = pd.DataFrame({
-        "theta0_deg": np.full(n_t * n_nodes, float(angle)), "t": np.repeat(t, n_nodes),
-        "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t), "s": np.tile(params.s, n_t),
-    })
-    for c, name in enumerate(STATE_NAMES):
-        df[name] = (q if c < 3 else p)[..., c % 3].ravel()
-    write_parquet(df[list(TRAJECTORY_COLUMNS)], out,
-                  {"kind": "rollout", "method": "blackbox_gp", "theta0_deg": float(angle),
-                   "rod": params.to_dict(), "simulation": settings.to_dict(), "seed": meta["seed"],
-                   "seconds": time.perf_counter() - t0, **info})
-    if info["diverged"]:
-        log.warning("blackbox_gp %s deg: diverged at t = %.4g s (node %s); frozen afterwards", angle,
-                    info["t_diverged"], info["node_diverged"])
+    for angle, out in zip(angles, outs, strict=True):
+        t0 = time.perf_counter()
+        t, q, p, info = blackbox.rollout(gps, float(angle), params, settings, meta["theta_center"])
+        n_t, n_nodes, _ = q.shape
+        df = pd.DataFrame({
+            "theta0_deg": np.full(n_t * n_nodes, float(angle)), "t": np.repeat(t, n_nodes),
+            "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_t), "s": np.tile(params.s, n_t),
+        })
+        for c, name in enumerate(STATE_NAMES):
+            df[name] = (q if c < 3 else p)[..., c % 3].ravel()
+        write_parquet(df[list(TRAJECTORY_COLUMNS)], out,
+                      {"kind": "rollout", "method": "blackbox_gp", "theta0_deg": float(angle),
+                       "rod": params.to_dict(), "simulation": settings.to_dict(), "seed": meta["seed"],
+                       "seconds": time.perf_counter() - t0, **info})
+        if info["diverged"]:
+            log.warning("blackbox_gp %s deg: diverged at t = %.4g s (node %s); frozen afterwards", angle,
+                        info["t_diverged"], info["node_diverged"])

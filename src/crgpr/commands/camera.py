@@ -3,7 +3,7 @@
 * ``camera_data``: the camera version of a ground-truth trajectory: positions only, every
   node, the camera's frame rate, Gaussian noise on x and y (seeded);
 * ``camera_learn``: ``crgpr learn`` on it (one model directory per noise/prefilter/features);
-* ``camera_rollout``: method ``cr_gpr_objective_camera`` at one test angle (for accuracy.parquet);
+* ``camera_rollout``: method ``cr_gpr_objective_camera`` at every test angle (for accuracy.parquet);
 * ``camera_ablation_cell``: one cell of the noise ablation rolled out on the ablation angles;
 * ``camera_ablation``: ``noise_ablation.csv`` and its figure.
 """
@@ -63,8 +63,12 @@ def camera_learn(cfg: dict[str, Any], measured: str, out_dir: str, features: str
     learn(measured, out_dir, cfg, features, prefilter)
 
 
-def camera_rollout(cfg: dict[str, Any], model_dir: str, angle: int, out: str, energy_out: str) -> None:
-    rollout_models(cfg, model_dir, float(angle), out, energy_out, label=CAMERA_METHOD)
+def camera_rollout(cfg: dict[str, Any], model_dir: str, angles: list[int], outs: list[str],
+                   energy_outs: list[str]) -> None:
+    """Rule ``camera_rollout``: ``rollout_models`` of the camera model at each test angle, one
+    trajectory and energy file per angle (in the order of ``angles``)."""
+    for angle, out, energy_out in zip(angles, outs, energy_outs, strict=True):
+        rollout_models(cfg, model_dir, float(angle), out, energy_out, label=CAMERA_METHOD)
 
 
 def camera_ablation_cell(cfg: dict[str, Any], model_dir: str, gts: list[str], angles: list[int],

@@ -32,20 +32,27 @@ def pinn_train(cfg: dict[str, Any], variant: str, data: dict[int, str], weights_
     log.info("%s trained in %.1f s", variant, info["train_seconds"])
 
 
-def pinn_rollout(cfg: dict[str, Any], variant: str, weights: str, ground_truth: str, angle: int,
-                 out: str, threads: int = 1) -> None:
-    """Rule ``pinn_rollout``: evaluate a trained PINN on the ground-truth (t, node) grid."""
+def pinn_rollout(cfg: dict[str, Any], variant: str, weights: str, ground_truths: list[str], angles: list[int],
+                 outs: list[str], threads: int = 1) -> None:
+    """Rule ``pinn_rollout``: evaluate one trained PINN on the ground-truth (t, node) grid of every
+    test angle (``ground_truths``, ``angles`` and ``outs`` in the same order), one file per angle.
+    Every ground truth is checked before anything is written."""
     import torch
 
     torch.set_num_threads(max(1, int(threads)))
     params = rod_params(cfg)
-    gt = read_parquet(ground_truth, required=TRAJECTORY_COLUMNS)
-    t = np.unique(gt["t"].to_numpy())
-    n_nodes = int(gt["node"].max()) + 1
-    if n_nodes != params.N + 1:
-        raise ConfigError(f"{ground_truth}: has {n_nodes} nodes but rod.N + 1 = {params.N + 1}")
+    if not len(ground_truths) == len(angles) == len(outs):
+        raise ValueError("pinn_rollout: ground_truths, angles and outs differ in length")
+    grids = []
+    for path in ground_truths:
+        gt = read_parquet(path, required=TRAJECTORY_COLUMNS)
+        n_nodes = int(gt["node"].max()) + 1
+        if n_nodes != params.N + 1:
+            raise ConfigError(f"{path}: has {n_nodes} nodes but rod.N + 1 = {params.N + 1}")
+        grids.append(np.unique(gt["t"].to_numpy()))
     model = pinn.load_model(cfg, weights)
-    z = pinn.predict(model, params, float(angle), t)
-    write_parquet(pinn.prediction_frame(z, t, params, float(angle)), out,
-                  {"kind": "rollout", "method": variant, "theta0_deg": float(angle),
-                   "description": pinn.VARIANTS[variant], "rod": params.to_dict(), "diverged": False})
+    for angle, t, out in zip(angles, grids, outs, strict=True):
+        z = pinn.predict(model, params, float(angle), t)
+        write_parquet(pinn.prediction_frame(z, t, params, float(angle)), out,
+                      {"kind": "rollout", "method": variant, "theta0_deg": float(angle),
+                       "description": pinn.VARIANTS[variant], "rod": params.to_dict(), "diverged": False})
