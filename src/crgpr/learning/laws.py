@@ -81,15 +81,22 @@ class RestState:
 
     def mirror_about(self, kappa0_nominal: float, estimate: bool = True) -> float | None:
         """The curvature the law's samples are mirrored about: none for a law that is not odd;
-        the nominal kappa0 where the data cannot tell it from the estimate (the estimate's band
-        contains it, or the held-out blocks do not predict consistently better about the
-        estimate than about kappa0) — the nominal one is exact for the declared rod; else the
-        estimate, or none where ``estimate`` is False (a law along s, whose rest curvature may
-        vary along s)."""
+        the nominal kappa0 where the estimate's band contains it (the data cannot tell the two
+        apart; the nominal one is exact for the declared rod) or where the held-out blocks
+        predict no better about the estimate than about kappa0 (mean log ratio <= 0: the band
+        is too narrow for the law's misfit); else the estimate, or none where ``estimate`` is
+        False (a law along s, whose rest curvature may vary along s).
+
+        The band is the test of c; the held-out blocks only veto it, by the sign of their mean
+        and not by its significance: a rest curvature shifts the moment by EI (c - kappa0), small
+        against the targets' noise in every block (the held-out test has little power) but a
+        bend of the whole rod at rest."""
         if not self.symmetric:
             return None
         compared = self.kappa0_nominal is not None and self.kappa0_nominal == kappa0_nominal
-        if self.band_lo <= kappa0_nominal <= self.band_hi or (compared and not self.nominal_rejected):
+        about_c_better = compared and self.heldout_log_ratio_nominal is not None \
+            and self.heldout_log_ratio_nominal > 0.0
+        if self.band_lo <= kappa0_nominal <= self.band_hi or (compared and not about_c_better):
             return kappa0_nominal
         return self.kappa_rest if estimate else None
 
