@@ -87,12 +87,19 @@ from crgpr.learning.camera import (
     SMOOTHED_WITH_MOMENT_PRIOR,
     LearnSettings,
     check_node_grid,
+    curvature_calibration,
     positions_to_state,
 )
 from crgpr.learning.damping import learn_bending_damping, record_rmse_theta, refine_by_rollout
 from crgpr.learning.extrapolation import Reach, TangentContinuation
 from crgpr.learning.features import OBJ_M_FEATURES
-from crgpr.learning.gradient_models import MOMENTUM_MODELS, inner_segments, train_model_arrays, training_data
+from crgpr.learning.gradient_models import (
+    KAPPA_CALIBRATION,
+    MOMENTUM_MODELS,
+    inner_segments,
+    train_model_arrays,
+    training_data,
+)
 from crgpr.learning.law_choice import bending_arclength, grey_box, nominal_choice
 from crgpr.learning.laws import rest_state
 from crgpr.learning.learned import LearnedRod
@@ -269,6 +276,11 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
         snr_m = segment_curvature_snr(m_tgt, params.EI, np.array(noise, dtype=float))
         keep_m = snr_m >= float(cam["snr_min"])
         m_mask = keep_m
+        if cam["curvature_calibration"] == "regression":
+            # errors in variables: every use of the law's curvature samples (damping, law choice, rest
+            # state, the GP, the record fit's reach) sees E[kappa | kappa_hat] per segment
+            k_hat = training_data(arr, params, "obj_m", None)[0][:, 0].reshape(arr["x"].shape[0], params.N)
+            arr[KAPPA_CALIBRATION] = curvature_calibration(k_hat, np.array(noise, dtype=float))
     damping = None
     if features == "objective" and m_mask.sum() >= 2:
         # a passive bending damping c dkappa/dt from the bending law's samples (learning/damping.py),
@@ -374,6 +386,9 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                 "trim_ends": trim, "trim_ends_per_model": trims,
                 "bending_segments_kept": None if keep_m is None else np.flatnonzero(keep_m).tolist(),
                 "bending_segment_snr": None if snr_m is None else [round(float(v), 3) for v in snr_m],
+                "curvature_calibration": None if KAPPA_CALIBRATION not in arr else
+                {"setting": cam["curvature_calibration"],
+                 "lambda": [round(float(v), 5) for v in np.asarray(arr[KAPPA_CALIBRATION])[1]]},
                 "bending_inputs": bend if features == "objective" else None, "bending_odd_about": odd,
                 "bending_symmetry": sym if features == "objective" else None,
                 "rest_state": None if rest is None else rest.to_dict(), "bending_arclength": along_s,

@@ -256,3 +256,21 @@ def _moment_weights(kin: Kinematics, arr: dict[str, np.ndarray], params: RodPara
     w = law.relative_secant(kappa_all)
     entry.update(used=True, secant_min=float(w.min()), secant_max=float(w.max()))
     return (w, law.centre), entry
+
+
+def curvature_calibration(kappa_hat: np.ndarray, kappa_noise: np.ndarray) -> np.ndarray:
+    """Regression calibration of rebuilt curvatures (errors in variables; beyond the paper):
+    (2, N) rows mu_j and lambda_j such that mu_j + lambda_j (kappa_hat_j - mu_j) = E[kappa_j |
+    kappa_hat_j] for a Gaussian curvature seen with independent noise of sd sigma_j:
+    mu_j the mean of ``kappa_hat`` (n_t, N) over frames, lambda_j = 1 - sigma_j^2 / var(kappa_hat_j),
+    clipped to [0, 1], from ``kappa_noise`` (N,), the clamped angle fit's own noise estimate
+    (``measured.kinematics.clamped_angle_fit``; NaN or 0: lambda = 1). A law regressed on
+    kappa_hat has its slope attenuated by lambda_j on segment j (at SNR 2, 0.8); on the
+    calibrated inputs a linear law's slope is unbiased."""
+    k = np.asarray(kappa_hat, dtype=float)
+    noise = np.asarray(kappa_noise, dtype=float)
+    mu = k.mean(axis=0)
+    var = k.var(axis=0)
+    known = np.isfinite(noise) & (noise > 0) & (var > 0)
+    lam = np.where(known, 1.0 - np.square(np.where(known, noise, 0.0)) / np.where(known, var, 1.0), 1.0)
+    return np.stack([mu, np.clip(lam, 0.0, 1.0)])

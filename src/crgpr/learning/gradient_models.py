@@ -160,6 +160,7 @@ def inner_segments(n_segments: int, trim_ends: int) -> np.ndarray:
 
 
 KAPPA_OPERATOR = "kappa_operator"  # key of the arrays: L (N, N), rebuilt curvature = L true curvature
+KAPPA_CALIBRATION = "kappa_calibration"  # key of the arrays: (2, N) mean, shrink factor of each rebuilt kappa
 
 
 def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
@@ -172,13 +173,18 @@ def training_data(arr: dict[str, np.ndarray], params: RodParams, name: str,
     resolve are left out); the momentum models keep every node. Where the arrays carry the
     curvature reconstruction's operator L (``KAPPA_OPERATOR``, camera data:
     ``learning.camera``), the bending moments of ``obj_m`` are L m per frame, smoothed along the
-    rod as its rebuilt curvatures are.
+    rod as its rebuilt curvatures are. Where they carry ``KAPPA_CALIBRATION`` (rows: mean mu_j and
+    factor lambda_j of each segment, ``learning.camera.curvature_calibration``), ``obj_m``'s own
+    curvature input kappa_j is mu_j + lambda_j (kappa_j - mu_j) (errors in variables).
     """
     x, y, th = arr["x"], arr["y"], arr["theta"]
     ds = params.ds
     hz = ft.hz_targets(arr, params)
     p = np.stack([arr[STATE_NAMES[3 + k]] for k in range(3)], axis=-1)
     X = model_features(x, y, th, p, ds, name, center)
+    if name == "obj_m" and KAPPA_CALIBRATION in arr:
+        mu, lam = np.asarray(arr[KAPPA_CALIBRATION], dtype=float)
+        X[..., 0] = mu + lam * (X[..., 0] - mu)
     if name in ("q_x", "q_y"):
         tgt = ft.q_from_hz(hz[..., 0 if name == "q_x" else 1], params)
     elif name == "dH_dtheta":
