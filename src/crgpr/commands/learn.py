@@ -272,15 +272,16 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
     if local_m and noise is not None:
         # the clamped angle fit knows each segment's curvature noise: the bending law keeps the
         # segments whose curvature SNR reaches camera.learn.snr_min (the tip's extrapolated ones do not)
-        m_tgt = training_data(arr, params, "obj_m", None)[1].reshape(arr["x"].shape[0], params.N)
-        snr_m = segment_curvature_snr(m_tgt, params.EI, np.array(noise, dtype=float))
+        X_all, m_all = training_data(arr, params, "obj_m", None)
+        shape = (arr["x"].shape[0], params.N)
+        noise_sd = np.array(noise, dtype=float)
+        snr_m = segment_curvature_snr(m_all.reshape(shape), params.EI, noise_sd)
         keep_m = snr_m >= float(cam["snr_min"])
         m_mask = keep_m
         if cam["curvature_calibration"] == "regression":
             # errors in variables: every use of the law's curvature samples (damping, law choice, rest
             # state, the GP, the record fit's reach) sees E[kappa | kappa_hat] per segment
-            k_hat = training_data(arr, params, "obj_m", None)[0][:, 0].reshape(arr["x"].shape[0], params.N)
-            arr[KAPPA_CALIBRATION] = curvature_calibration(k_hat, np.array(noise, dtype=float))
+            arr[KAPPA_CALIBRATION] = curvature_calibration(X_all[:, 0].reshape(shape), noise_sd)
     damping = None
     if features == "objective" and m_mask.sum() >= 2:
         # a passive bending damping c dkappa/dt from the bending law's samples (learning/damping.py),
