@@ -191,10 +191,11 @@ def _exact_record(P, true_warp: np.ndarray, scale: float, damping: float = 0.0,
             "p_x": tr.p[..., 0], "p_y": tr.p[..., 1], "p_theta": tr.p[..., 2].copy()}
 
 
-def _record(P, true_warp: np.ndarray, scale: float, noise: float, seed: int) -> dict[str, np.ndarray]:
+def _record(P, true_warp: np.ndarray, scale: float, noise: float, seed: int,
+            rest: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """``_exact_record``, its first frame's derived angles and rates off by a smooth error (what
     the derived start of a camera record has), its angles with iid noise."""
-    arr = _exact_record(P, true_warp, scale)
+    arr = _exact_record(P, true_warp, scale, rest=rest)
     s = np.linspace(0, 1, P.N + 1)
     arr["theta"] += np.random.default_rng(seed).normal(0, noise, arr["theta"].shape) * (s > 0)
     arr["theta"][0] += 0.02 * s**2
@@ -352,6 +353,70 @@ def test_a_rest_curvature_along_s_shifts_the_laws_input_and_is_found_from_the_re
     assert fit.kept and fit.rest_terms == 2 and fit.profile_coefficients == [], fit
     assert np.allclose(fit.rest_coefficients, c_true, atol=0.03), fit
     assert np.allclose(manifest_warp(fit.to_dict())[4], fit.rest_coefficients)
+
+
+def test_a_rest_shift_the_fit_resolves_is_taken_unless_the_held_out_blocks_forecast_worse(smoke):
+    """The rest shift's rule: a rest curvature shifts the moment by EI d(s) only, so the held-out
+    blocks' test has little power for it; the shift is taken where the fit on the record's first
+    part resolves it (Wald statistic above the chi-square 95 % quantile, from the covariance the
+    kept warps report) and the blocks do not forecast worse. A rod whose rest curvature grows
+    along s (d = 0.3 P_1 1/m; camera-like start, 0.03 rad noise) gains too little on the blocks
+    for their test alone, and is taken: d to 0.1 1/m. A uniform
+    rod whose noisy record pulls the fit to a spurious shift the covariance calls resolved: the
+    held-out blocks forecast worse with it, so it is not taken."""
+    from scipy.stats import chi2
+
+    P, sim, rf = smoke
+
+    def rod(W, c):
+        return _nominal_rod(P, W[:, :1], 20.0, c, None, W[:, 1:])
+    quantile = chi2.ppf(0.95, 2)
+    c_true = np.array([0.0, 0.3])
+    graded = fit_record(rod, _record(P, np.zeros(1), 20.0, 0.03, 3, c_true), P, sim, 0.0, 20.0, rf,
+                        profile_terms=(0, 2))
+    assert graded.rest_wald > quantile, graded
+    assert 0 < graded.rest_log_ratio < 1.96 * graded.rest_log_ratio_se, graded
+    assert graded.kept and np.allclose(graded.rest_coefficients, c_true, atol=0.1), graded
+    assert "resolved by the fit" in graded.note, graded.note
+    spurious = fit_record(rod, _record(P, np.zeros(1), 20.0, 0.01, 2), P, sim, 0.0, 20.0, rf,
+                          profile_terms=(0, 2))
+    assert spurious.rest_wald > quantile and spurious.rest_log_ratio < 0, spurious
+    assert spurious.rest_coefficients == [] and len(spurious.rest_fitted) == 2, spurious
+
+
+def test_a_rest_shift_on_a_law_without_s_is_shown_and_scored_segment_by_segment(tmp_path):
+    """A uniform law (no s input) whose record-fit warp shifts its rest curvature along the rod
+    (d(s) = 0.4 + 0.3 P_1 1/m) is one law per segment: ``laws.parquet``'s rows are repeated at
+    ``s_points`` values of s from the first segment's mid-point to the last's, each crossing
+    zero at d(s); the per-segment law (the study's law scores, the tangent check) is EI (kappa -
+    d(s_j)) at every segment j. Without the shift the table keeps one slice (at_s NaN)."""
+    from paper_rod import PAPER_ROD
+
+    from crgpr.gp import fit_gp
+    from crgpr.learning.law_tables import bending_law_at_segments, law_table
+
+    P = PAPER_ROD
+    kappa = np.linspace(-20.0, 20.0, 300)
+    fit_gp(kappa[:, None], P.EI * kappa, kernel="se", basis="linear", sigma_n_min=1e-9, standardise_y=True,
+           seed=0).save(tmp_path / "obj_m", extra={"features": ["kappa"]})
+    c = np.array([0.4, 0.3])
+    warp = (0.0, 20.0, np.zeros(1), np.zeros(0), c)
+    tab = law_table(tmp_path / "obj_m", "obj_m", ["kappa"], P, n_grid=401, pad=0.0, max_points=300, seed=0,
+                    s_points=3, band_blocks=0, floor=False, warp=warp)
+    s_at = np.sort(tab["at_s"].unique())
+    L = P.N * P.ds
+    np.testing.assert_allclose(s_at / L, [0.5 / P.N, 0.5, 1.0 - 0.5 / P.N], rtol=1e-12)
+    for sv, g in tab.groupby("at_s"):
+        zero = np.interp(0.0, g["mean"].to_numpy(), g["x"].to_numpy())
+        assert abs(zero - rest_shift(np.array([sv / L]), c)[0]) < 1e-3, (sv, zero)
+    x = np.linspace(-10.0, 10.0, 21)
+    mean, _ = bending_law_at_segments(tmp_path, ["obj_m"], P, x, 300, 0, 0, warp, with_sd=False)
+    d = rest_shift(segment_positions(P.N), c)
+    np.testing.assert_allclose(mean, P.EI * (x[:, None] - d[None, :]), atol=1e-6 * P.EI * 20.0)
+    flat = (0.0, 20.0, np.zeros(1), np.zeros(0), np.zeros(0))
+    plain = law_table(tmp_path / "obj_m", "obj_m", ["kappa"], P, n_grid=41, pad=0.0, max_points=300, seed=0,
+                      s_points=3, band_blocks=0, floor=False, warp=flat)
+    assert plain["at_s"].isna().all() and len(plain) == 41
 
 
 def test_a_tail_softer_than_the_tangent_is_sized_from_the_record(smoke):

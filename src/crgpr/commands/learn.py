@@ -350,7 +350,8 @@ def learn(measured: str | Path, out_dir: str | Path, cfg: dict[str, Any], featur
                                float(np.max(np.abs(kappa - center))),
                                0.0 if damping is None else damping.coefficient, kind == "full_state",
                                auto and learned_any, bending_scale,
-                               "obj_m" in laws and along_s["used"] and kind != "full_state", reach)
+                               _profile_terms(cfg, "obj_m" in laws and kind != "full_state", along_s["used"],
+                                              odd is not None and odd != float(params.kappa0)), reach)
         fit = fit_with(grey["nominal_laws"], trained)
         grey = {**grey, "strain_laws_nominal_by_record_fit": False}
         strain = [m for m in trained if m in ("obj_n1", "obj_n2")]
@@ -423,23 +424,22 @@ def _record_rmse(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], par
 def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], params: RodParams,
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
-                against_nominal: bool, bending_scale: float | None = None, along_s: bool = False,
-                reach: Reach | None = None) -> RecordFit:
+                against_nominal: bool, bending_scale: float | None = None,
+                profile_terms: tuple[int, int] = (0, 0), reach: Reach | None = None) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
     data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
     also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
     law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale;
-    with ``along_s`` (the bending law learned from positions takes s: their curvature
-    reconstruction smooths it along s) a profile along s is offered too (``record_fit.profile``);
-    with ``reach`` the warped law is continued beyond it (``learning.extrapolation``) in every
+    with ``profile_terms`` (S, R) a profile along s is offered too (``_profile_terms``); with
+    ``reach`` the warped law is continued beyond it (``learning.extrapolation``) in every
     rollout of the fit, as the model's rollouts will continue it."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
     rf = cfg["camera"]["learn"]["record_fit"]
     K = max(int(k) for k in rf["warp_terms"])
-    S, R = (int(rf["profile"][k]) if along_s else 0 for k in ("stiffness_terms", "rest_terms"))
+    S, R = profile_terms
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
         m = BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K], W[:, K:K + S], W[:, K + S:K + S + R])
@@ -458,6 +458,23 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
         bending = (nominal_bending, float(params.kappa0), bending_scale)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
                       rf, inputs, ports, damping, exact_start, nominal, bending, (S, R), reach is not None)
+
+
+def _profile_terms(cfg: dict[str, Any], from_positions: bool, along_s: bool,
+                   estimated_rest: bool) -> tuple[int, int]:
+    """(S, R) of the profile along s the record fit offers (``camera.learn.record_fit.profile``)
+    to a bending law learned from positions: to a law along s (the arclength test) the stiffness
+    factor and the rest shift (their curvature reconstruction smooths the law along s); to a law
+    without s mirrored about a rest curvature the data estimated (``estimated_rest``, not the
+    nominal kappa0) the rest shift alone, ``estimated_rest_terms`` (one c cannot hold a rest
+    curvature that varies along the rod, and the arclength test has little power for it: a rest
+    curvature shifts the moment by EI dkappa only); else none."""
+    p = cfg["camera"]["learn"]["record_fit"]["profile"]
+    if not from_positions:
+        return 0, 0
+    if along_s:
+        return int(p["stiffness_terms"]), int(p["rest_terms"])
+    return (0, int(p["estimated_rest_terms"])) if estimated_rest else (0, 0)
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

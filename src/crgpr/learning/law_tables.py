@@ -37,7 +37,9 @@ both sides, the other inputs at their training medians:
 * ``covered``: whether x_j lies inside [lo_j, hi_j];
 * ``at_s``: for a law with the arclength s as an input (a bending law varying along the rod,
   ``law_choice``), the grid of every other input is repeated at ``s_points`` values of s evenly
-  over its covered range (so EI(s) can be read off); NaN otherwise and for the s grid itself.
+  over its covered range (so EI(s) can be read off); for a bending law without s whose warp
+  shifts its rest curvature along the rod (``warp.rest_shift``), at ``s_points`` values of s
+  from the first segment's mid-point to the last's; NaN otherwise and for the s grid itself.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ from crgpr.gp.sampling import (
     subset_spec,
 )
 from crgpr.learning.law_choice import standin_departure
-from crgpr.learning.warp import Warp, law_factor, segment_positions, shifted_kappa, warp_sd
+from crgpr.learning.warp import Warp, has_rest_shift, law_factor, segment_positions, shifted_kappa, warp_sd
 from crgpr.physics.params import RodParams
 
 LAW_MODELS: tuple[str, ...] = ("obj_m", "obj_n1", "obj_n2")
@@ -141,7 +143,13 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
     band = _sd_model(stem, max_points, seed, band_blocks, floor)
     med = np.median(Xt, axis=0)
     js = features.index("s") if "s" in features else None
-    s_at = [np.nan] if js is None else np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
+    L = params.N * params.ds
+    if js is not None:
+        s_at = np.linspace(Xt[:, js].min(), Xt[:, js].max(), s_points)
+    elif has_rest_shift(warp):  # a law without s, evaluated along the rod at its warp's rest shift
+        s_at = L * np.linspace(*segment_positions(params.N)[[0, -1]], s_points)
+    else:
+        s_at = [np.nan]
     rows = []
     for j, feat in enumerate(features):
         lo, hi = float(Xt[:, j].min()), float(Xt[:, j].max())
@@ -152,7 +160,7 @@ def law_table(stem: str | Path, name: str, features: list[str], params: RodParam
             if np.isfinite(sv):
                 X[:, js] = sv
             X[:, j] = g
-            s_rel = None if js is None else X[:, js] / (params.N * params.ds)
+            s_rel = X[:, js] / L if js is not None else (np.full(n_grid, sv / L) if np.isfinite(sv) else None)
             for i in _curvature_columns(features):  # the warp's rest shift moves the law's curvature inputs
                 X[:, i] = shifted_kappa(X[:, i], s_rel, warp)
             mean, sd = _warped(_mean(stem, X), band.sd(X),
@@ -257,17 +265,19 @@ def bending_law_at_segments(model_dir: str | Path, trained: list[str], params: R
     s, s_rel = segment_arclength(N, params.ds), segment_positions(N)
     mean, sd = np.empty((kappa.size, N)), np.empty((kappa.size, N))
     at = np.empty((kappa.size, N))  # the curvature each segment's law is evaluated at (the warp's rest shift)
+    along = "s" in features or has_rest_shift(warp)  # a law of its own at each segment
     for j in range(N):
         X = np.tile(med, (kappa.size, 1))
         X[:, features.index("kappa")] = kappa
         if "s" in features:
             X[:, features.index("s")] = s[j]
+        if along:
             for i in _curvature_columns(features):
                 X[:, i] = shifted_kappa(X[:, i], s_rel[j:j + 1], warp)
         at[:, j] = X[:, features.index("kappa")]
         mean[:, j] = _mean(stem, X)
         sd[:, j] = 0.0 if band is None else band.sd(X)
-        if "s" not in features:  # the same law for every segment
+        if not along:  # the same law for every segment
             mean[:, j:], sd[:, j:], at[:, j:] = mean[:, [j]], sd[:, [j]], at[:, [j]]
             break
     return _warped(mean, sd, at, warp, warp_cov, s_rel, truncation)

@@ -25,7 +25,9 @@ Parameters (``RecordFit``):
   v(s) = exp(sum_{j = 1..S} b_j P_j(2 s/L - 1)) (``warp.profile_factor``), positive for any b,
   and a rest-curvature shift d(s) = sum_{j < R} c_j P_j(2 s/L - 1) (``warp.rest_shift``):
   m(kappa, s) <- m(kappa - d(s), s) w(kappa - d(s)) v(s); the positions' curvature
-  reconstruction smooths the law along s, and the motion shows what it misses;
+  reconstruction smooths the law along s, and the motion shows what it misses. To a law without
+  s mirrored about a rest curvature the data estimated, the shift d(s) alone (one c cannot hold
+  a rest curvature that varies along the rod);
 * the record's initial state, from positions (camera data): the derived angles theta_0(s) and
   rates omega_0(s) at its first kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero
   at the clamp); positions and velocities are rebuilt from them at the nominal strains nu^0 from
@@ -90,6 +92,7 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy.stats import chi2
 
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.learning.lm import levenberg_marquardt
@@ -110,6 +113,8 @@ def tail_factor(log_g: np.ndarray | float) -> np.ndarray:
     factor (``extrapolation.Reach.slope_factor``) the record fit sizes; where the motion wants the
     tail flat, its log runs off towards -inf and g stops at 1/100."""
     return np.exp(np.clip(np.asarray(log_g, dtype=float), -TAIL_LOG_BOUND, TAIL_LOG_BOUND))
+
+P95 = 0.95  # the rest shift's Wald test's level: that of every held-out choice's 1.96 standard errors
 
 
 @dataclass(frozen=True)
@@ -155,6 +160,9 @@ class RecordFit:
     rest_coefficients: list[float] = field(default_factory=list)  # a kept profile's c_j [1/m] (rest_shift)
     rest_terms: int = 0  # the profile candidate's number of rest-curvature terms R
     profile_log_ratio: float = math.nan  # mean per-block log(held-out error: pick / pick with v(s)) [-]
+    rest_wald: float = math.nan  # c^T cov^-1 c of the rest shift fitted on the first part [-]
+    rest_fitted: list[float] = field(default_factory=list)  # that fit's c_j, kept or not [1/m]
+    rest_fitted_sd: list[float] = field(default_factory=list)  # their sd (warp_covariance) [1/m]
     profile_log_ratio_se: float = math.nan  # its standard error [-]
     rest_log_ratio: float = math.nan  # the same for the rest shift d(s), on top of the pick then [-]
     rest_log_ratio_se: float = math.nan  # its standard error [-]
@@ -164,6 +172,17 @@ class RecordFit:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+def coefficient_wald(r: np.ndarray, J: np.ndarray, n_frames: int, free: np.ndarray, block: slice,
+                     a: np.ndarray) -> tuple[float, list[float]]:
+    """The Wald statistic a_b^T C_b^-1 a_b of the parameters ``block`` of a fit at ``a`` (residuals
+    r, Jacobian J over the ``free`` parameters, ``n_frames`` frames), C_b their covariance
+    (``record_stats.warp_covariance``, inflated by the residuals' correlation times), and their sd."""
+    cols = np.searchsorted(np.flatnonzero(free), np.arange(block.start, block.stop))
+    C = warp_covariance(r, J, n_frames, J.shape[1])[np.ix_(cols, cols)]
+    ab = np.asarray(a, dtype=float)[block]
+    return float(ab @ np.linalg.pinv(C) @ ab), [float(v) for v in np.sqrt(np.maximum(np.diag(C), 0.0))]
 
 
 def start_state(arr: dict[str, np.ndarray], params: RodParams, b: np.ndarray, modes: int
@@ -331,14 +350,19 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     warp is the nominal law's (``crgpr learn`` then refuses the learned bending law), and the
     comparison with ``nominal_rod`` runs against it.
 
-    ``profile_terms`` (S, R), not both 0 (a bending law that takes s as an input): after the
-    choice of K, a profile along the rod by forward selection on top of the pick: first a
-    stiffness factor v(s) of S Legendre terms (``warp.profile_factor``), then a rest-curvature
-    shift d(s) of R (``warp.rest_shift``), each fitted on the first part from the pick's fit
-    and taken where it forecasts the held-out blocks consistently better than the pick
-    (``profile_log_ratio``, ``rest_log_ratio``): a law learned along s from positions is
-    smoothed along s by their curvature reconstruction, and the motion shows the profile the
-    regression misses."""
+    ``profile_terms`` (S, R), not both 0 (a bending law that takes s as an input, or one without
+    s mirrored about an estimated rest curvature: S = 0): after the choice of K, a profile along
+    the rod by forward selection on top of the pick: first a stiffness factor v(s) of S Legendre
+    terms (``warp.profile_factor``), then a rest-curvature shift d(s) of R (``warp.rest_shift``),
+    each fitted on the first part from the pick's fit and taken where it forecasts the held-out
+    blocks consistently better than the pick (``profile_log_ratio``, ``rest_log_ratio``): a law
+    learned along s from positions is smoothed along s by their curvature reconstruction, and
+    the motion shows the profile the regression misses. The rest shift is also taken where the
+    fit resolves it (``coefficient_wald`` above the 95 % chi-square quantile of R degrees,
+    ``rest_wald``) and the held-out blocks do not forecast worse (mean log ratio > 0), the rule
+    of the rest curvature itself (``laws.RestState.mirror_about``): it shifts the moment by
+    EI d(s) only, small against the held-out errors of every block, so their test has little
+    power for it."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -419,17 +443,24 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     pick = candidates[chosen - 1] if chosen else candidates[0]
     ratio, se = pick["heldout_log_ratio"], pick["heldout_log_ratio_se"]
     along = np.zeros(n_a, dtype=bool)  # the profile's parameters taken: stiffness, then rest shift
+    resolved = False  # the rest shift taken as resolved by the fit, its held-out gain not significant
     for name, b in blocks_along.items():  # forward selection on top of the pick
         if b.stop > b.start:
             free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
             free[b] = True
-            a_s = levenberg_marquardt(part, a_pick, free, *lm)[0]
+            fin: dict[str, np.ndarray] = {}
+            a_s = levenberg_marquardt(part, a_pick, free, *lm, fin)[0]
             r_s = batch_rows(full, a_s[None])
             if r_s is None:
                 continue
             r_s = r_s.reshape(n_t, -1)
             p_ratio, p_se, better = decide(r_pick[n_fit:] ** 2, r_s[n_fit:] ** 2, blocks)
             profile.update({f"{name}_log_ratio": p_ratio, f"{name}_log_ratio_se": p_se})
+            if name == "rest" and "J" in fin:  # resolved by the fit, and not forecasting worse
+                wald, wald_sd = coefficient_wald(fin["r"], fin["J"], n_fit, free, b, a_s)
+                profile.update(rest_fitted=[float(v) for v in a_s[b]], rest_fitted_sd=wald_sd, rest_wald=wald)
+                resolved = not better and wald > float(chi2.ppf(P95, b.stop - b.start)) and p_ratio > 0.0
+                better = better or resolved
             if better:
                 along[b], a_pick, r_pick = True, a_s, r_s
     if nominal_bending is not None:
@@ -480,8 +511,12 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     parts = [f"{int(along[b].sum())} {name} terms" for name, b in blocks_along.items() if along[b].any()]
     on_s = f" and a profile along s: {', '.join(parts)}" if parts else ""
     tail_log = float(np.clip(a[-1], -TAIL_LOG_BOUND, TAIL_LOG_BOUND)) if free[at_tail].any() else 0.0
+    wald = resolved and along[blocks_along["rest"]].any()
+    by_wald = ("; its rest shift: resolved by the fit (rest_wald above the chi-square 95 % quantile), "
+               "forecasting the held-out blocks no worse" if wald else "")
     kept = replace(result(k, a, start_only, rms, ratio, se, f"kept ({k} terms{on_s}, on {which}): forecasts "
-                          f"the held-out blocks consistently better{refit}", frame, along), **nominal,
+                          f"the held-out blocks consistently better{refit}{by_wald}", frame, along),
+                   **nominal,
                    **(trunc if k else {}), tail_log_factor=tail_log)
     n_w, n_tail = k + int(along.sum()), int(free[at_tail].sum())
     cov = (warp_covariance(last["r"], last["J"], n_t, n_w + n_tail)[:n_w, :n_w] if "J" in last

@@ -107,6 +107,11 @@ def law_factor(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp) -> np.nd
                                                                        b).reshape(np.shape(s_rel))
 
 
+def has_rest_shift(warp: Warp | None) -> bool:
+    """Whether a ``Warp`` shifts its law's rest curvature along the rod (``rest_shift`` terms)."""
+    return warp is not None and np.asarray(warp[4]).size > 0
+
+
 def shifted_kappa(kappa: np.ndarray, s_rel: np.ndarray | None, warp: Warp | None) -> np.ndarray:
     """kappa - d(s): the curvature at which a ``Warp`` evaluates the law (kappa where it has no
     rest shift or the law no s)."""
