@@ -17,7 +17,8 @@ and worst RMSE(theta) over the study's six test angles, the worst ``ratio_to_nom
 damping's c, whether the record fit kept its warp (and with how many terms), whether it fell
 back to the nominal rod, whether a damped rod's bending law was taken nominal (warped), the
 terms of the profile along the rod it kept (``profile_terms`` of the stiffness factor v(s),
-``rest_terms`` of the rest-curvature shift; 0: none kept or not offered), the least tangent
+``rest_terms`` of the rest-curvature shift, its stored c_0.., c_0 = 0 where the level is the
+law's own estimate; 0: none kept or not offered), the least tangent
 stiffness of the bending law as rolled out over its covered curvatures in units of EI
 (``min_tangent_over_ei``, the manifest's ``bending_tangent``; empty for a nominal law unwarped),
 and the learn wall time. ``--keep DIR`` keeps

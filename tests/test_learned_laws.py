@@ -182,18 +182,19 @@ def test_a_rest_curvature_far_outside_the_band_needs_no_significant_held_out_gai
 def test_a_law_mirrored_about_an_estimated_rest_curvature_is_offered_a_rest_shift_along_the_rod():
     """The profile along s the record fit offers a bending law learned from positions: a law along
     s gets the stiffness factor and the rest shift (``stiffness_terms``, ``rest_terms``); a
-    uniform law mirrored about a rest curvature the data estimated gets the rest shift alone
-    (``estimated_rest_terms``): one c cannot hold a rest curvature that varies along the rod;
-    a law mirrored about the nominal kappa0, and any law from the full state, get none."""
+    uniform law mirrored about a rest curvature the data estimated gets the rest shift's variation
+    along s alone (``estimated_rest_terms`` terms P_1.., the level fixed at the estimate): one c
+    cannot hold a rest curvature that varies along the rod; a law mirrored about the nominal
+    kappa0, and any law from the full state, get none."""
     from crgpr.commands.learn import _profile_terms
 
     cfg = load_config(SMOKE)
     cfg["camera"]["learn"]["record_fit"]["profile"] = {"stiffness_terms": 2, "rest_terms": 1,
                                                        "estimated_rest_terms": 3}
-    assert _profile_terms(cfg, True, True, False) == (2, 1)
-    assert _profile_terms(cfg, True, False, True) == (0, 3)
-    assert _profile_terms(cfg, True, False, False) == (0, 0)
-    assert _profile_terms(cfg, False, True, True) == (0, 0)
+    assert _profile_terms(cfg, True, True, False) == (2, 1, True)
+    assert _profile_terms(cfg, True, False, True) == (0, 4, False)
+    assert _profile_terms(cfg, True, False, False)[:2] == (0, 0)
+    assert _profile_terms(cfg, False, True, True)[:2] == (0, 0)
 
 
 @settings(max_examples=25, deadline=None)

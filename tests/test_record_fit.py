@@ -384,6 +384,21 @@ def test_a_rest_shift_the_fit_resolves_is_taken_unless_the_held_out_blocks_forec
     assert spurious.rest_coefficients == [] and len(spurious.rest_fitted) == 2, spurious
 
 
+def test_a_rest_shift_without_its_level_keeps_the_laws_mean_rest_curvature(smoke):
+    """``rest_level`` False (a law mirrored about a rest curvature the regression estimated):
+    the shift's level c_0 stays exactly 0 and only its variation along s is fitted: a rod whose
+    rest curvature grows along s by 0.3 P_1 1/m gets c_1 to 0.03 1/m, one free term."""
+    P, sim, rf = smoke
+
+    def rod(W, c):
+        return _nominal_rod(P, W[:, :1], 20.0, c, None, W[:, 1:])
+    arr = _exact_record(P, np.zeros(1), 20.0, rest=np.array([0.0, 0.3]))
+    fit = fit_record(rod, arr, P, sim, 0.0, 20.0, rf, exact_start=True, profile_terms=(0, 2),
+                     rest_level=False)
+    assert fit.kept and fit.rest_coefficients[0] == 0.0 and abs(fit.rest_coefficients[1] - 0.3) < 0.03, fit
+    assert len(fit.rest_fitted) == 1 and len(fit.rest_fitted_sd) == 1, fit
+
+
 def test_a_rest_shift_on_a_law_without_s_is_shown_and_scored_segment_by_segment(tmp_path):
     """A uniform law (no s input) whose record-fit warp shifts its rest curvature along the rod
     (d(s) = 0.4 + 0.3 P_1 1/m) is one law per segment: ``laws.parquet``'s rows are repeated at

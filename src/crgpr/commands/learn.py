@@ -425,7 +425,7 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
                 nominal: list[str], trained: list[str], inputs: Inputs | None, ports: Ports | None,
                 center: float, kappa_scale: float, damping: float, exact_start: bool,
                 against_nominal: bool, bending_scale: float | None = None,
-                profile_terms: tuple[int, int] = (0, 0), reach: Reach | None = None) -> RecordFit:
+                profile_terms: tuple[int, int, bool] = (0, 0, True), reach: Reach | None = None) -> RecordFit:
     """``learning.record_fit.fit_record`` of the objective models just written to ``out`` (with
     the kept bending damping c, whose size it fits too) on the training record ``arr`` (the
     full state: ``exact_start``); with ``against_nominal`` (the laws learned or nominal as the
@@ -439,7 +439,7 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     comps, _ = learned_components(out, man, lambda m: load_evaluator(out / m))
     rf = cfg["camera"]["learn"]["record_fit"]
     K = max(int(k) for k in rf["warp_terms"])
-    S, R = profile_terms
+    S, R, level = profile_terms
 
     def law_rod(W: np.ndarray, c: float) -> LearnedRod:
         m = BendingWarp(comps["obj_m"], center, kappa_scale, W[:, :K], W[:, K:K + S], W[:, K + S:K + S + R])
@@ -457,24 +457,28 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
             return LearnedRod({**comps, "obj_m": m}, "objective", params, None, c)
         bending = (nominal_bending, float(params.kappa0), bending_scale)
     return fit_record(law_rod, arr, params, _record_settings(cfg, arr, params), center, kappa_scale,
-                      rf, inputs, ports, damping, exact_start, nominal, bending, (S, R), reach is not None)
+                      rf, inputs, ports, damping, exact_start, nominal, bending, (S, R), reach is not None,
+                      rest_level=level)
 
 
 def _profile_terms(cfg: dict[str, Any], from_positions: bool, along_s: bool,
-                   estimated_rest: bool) -> tuple[int, int]:
-    """(S, R) of the profile along s the record fit offers (``camera.learn.record_fit.profile``)
-    to a bending law learned from positions: to a law along s (the arclength test) the stiffness
-    factor and the rest shift (their curvature reconstruction smooths the law along s); to a law
-    without s mirrored about a rest curvature the data estimated (``estimated_rest``, not the
-    nominal kappa0) the rest shift alone, ``estimated_rest_terms`` (one c cannot hold a rest
-    curvature that varies along the rod, and the arclength test has little power for it: a rest
-    curvature shifts the moment by EI dkappa only); else none."""
+                   estimated_rest: bool) -> tuple[int, int, bool]:
+    """(S, R, level) of the profile along s the record fit offers
+    (``camera.learn.record_fit.profile``; ``learning.record_fit.fit_record``'s ``profile_terms``
+    and ``rest_level``) to a bending law learned from positions: to a law along s (the arclength
+    test) the stiffness factor and the rest shift with its level (their curvature reconstruction
+    smooths the law along s); to a law without s mirrored about a rest curvature the data
+    estimated (``estimated_rest``, not the nominal kappa0) the rest shift's variation along s
+    alone, ``estimated_rest_terms`` Legendre terms P_1.. (the level stays the estimate: one c
+    cannot hold a rest curvature that varies along the rod, and the arclength test has little
+    power for it, a rest curvature shifting the moment by EI dkappa only); else none."""
     p = cfg["camera"]["learn"]["record_fit"]["profile"]
-    if not from_positions:
-        return 0, 0
-    if along_s:
-        return int(p["stiffness_terms"]), int(p["rest_terms"])
-    return (0, int(p["estimated_rest_terms"])) if estimated_rest else (0, 0)
+    along = int(p["estimated_rest_terms"])
+    if from_positions and along_s:
+        return int(p["stiffness_terms"]), int(p["rest_terms"]), True
+    if from_positions and estimated_rest and along:
+        return 0, along + 1, False
+    return 0, 0, True
 
 
 def _record_settings(cfg: dict[str, Any], arr: dict[str, np.ndarray], params: RodParams) -> SimSettings:

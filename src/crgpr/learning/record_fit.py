@@ -174,12 +174,13 @@ class RecordFit:
         return asdict(self)
 
 
-def coefficient_wald(r: np.ndarray, J: np.ndarray, n_frames: int, free: np.ndarray, block: slice,
+def coefficient_wald(r: np.ndarray, J: np.ndarray, n_frames: int, free: np.ndarray, block: np.ndarray,
                      a: np.ndarray) -> tuple[float, list[float]]:
-    """The Wald statistic a_b^T C_b^-1 a_b of the parameters ``block`` of a fit at ``a`` (residuals
-    r, Jacobian J over the ``free`` parameters, ``n_frames`` frames), C_b their covariance
-    (``record_stats.warp_covariance``, inflated by the residuals' correlation times), and their sd."""
-    cols = np.searchsorted(np.flatnonzero(free), np.arange(block.start, block.stop))
+    """The Wald statistic a_b^T C_b^-1 a_b of the free parameters ``block`` (indices) of a fit at
+    ``a`` (residuals r, Jacobian J over the ``free`` parameters, ``n_frames`` frames), C_b their
+    covariance (``record_stats.warp_covariance``, inflated by the residuals' correlation times),
+    and their sd."""
+    cols = np.searchsorted(np.flatnonzero(free), block)
     C = warp_covariance(r, J, n_frames, J.shape[1])[np.ix_(cols, cols)]
     ab = np.asarray(a, dtype=float)[block]
     return float(ab @ np.linalg.pinv(C) @ ab), [float(v) for v in np.sqrt(np.maximum(np.diag(C), 0.0))]
@@ -319,7 +320,8 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                damping: float = 0.0, exact_start: bool = False,
                nominal_rod: LearnedRod | None = None,
                nominal_bending: tuple[Callable[[np.ndarray, float], LearnedRod], float, float] | None = None,
-               profile_terms: tuple[int, int] = (0, 0), tail: bool = False) -> RecordFit:
+               profile_terms: tuple[int, int] = (0, 0), tail: bool = False, rest_level: bool = True
+               ) -> RecordFit:
     """The module's fit and decision on the training record ``arr`` (prefilter or
     ``positions_to_state`` arrays, time-major; its first ``max_record_s`` seconds);
     ``law_rod(W, c)`` is the learned rod with warp coefficients W (B, K + S + R) (``BendingWarp``
@@ -362,7 +364,10 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     ``rest_wald``) and the held-out blocks do not forecast worse (mean log ratio > 0), the rule
     of the rest curvature itself (``laws.RestState.mirror_about``): it shifts the moment by
     EI d(s) only, small against the held-out errors of every block, so their test has little
-    power for it."""
+    power for it. ``rest_level`` False: the shift's level c_0 stays 0, d(s) = sum_{1 <= j < R}
+    c_j P_j(2 s/L - 1), whose mean along the rod is 0 (a law mirrored about a rest curvature the
+    regression estimated keeps that estimate as its mean, and the record fit adds its variation
+    along s)."""
     t_start = time.perf_counter()
     J = 0 if exact_start else int(cfg["start_modes"])
     terms = sorted({int(k) for k in cfg["warp_terms"]})
@@ -447,7 +452,12 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
     for name, b in blocks_along.items():  # forward selection on top of the pick
         if b.stop > b.start:
             free = (np.arange(n_a) < w0 + k) | along | (at_tail if k else False)
-            free[b] = True
+            on_b = np.zeros(n_a, dtype=bool)
+            on_b[b] = True
+            on_b[b.start] &= name != "rest" or rest_level  # the level: the law's own estimate
+            if not on_b.any():
+                continue
+            free |= on_b
             fin: dict[str, np.ndarray] = {}
             a_s = levenberg_marquardt(part, a_pick, free, *lm, fin)[0]
             r_s = batch_rows(full, a_s[None])
@@ -457,12 +467,13 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
             p_ratio, p_se, better = decide(r_pick[n_fit:] ** 2, r_s[n_fit:] ** 2, blocks)
             profile.update({f"{name}_log_ratio": p_ratio, f"{name}_log_ratio_se": p_se})
             if name == "rest" and "J" in fin:  # resolved by the fit, and not forecasting worse
-                wald, wald_sd = coefficient_wald(fin["r"], fin["J"], n_fit, free, b, a_s)
-                profile.update(rest_fitted=[float(v) for v in a_s[b]], rest_fitted_sd=wald_sd, rest_wald=wald)
-                resolved = not better and wald > float(chi2.ppf(P95, b.stop - b.start)) and p_ratio > 0.0
+                wald, wald_sd = coefficient_wald(fin["r"], fin["J"], n_fit, free, np.flatnonzero(on_b), a_s)
+                profile.update(rest_fitted=[float(v) for v in a_s[on_b]], rest_fitted_sd=wald_sd,
+                               rest_wald=wald)
+                resolved = not better and wald > float(chi2.ppf(P95, int(on_b.sum()))) and p_ratio > 0.0
                 better = better or resolved
             if better:
-                along[b], a_pick, r_pick = True, a_s, r_s
+                along, a_pick, r_pick = along | on_b, a_s, r_s
     if nominal_bending is not None:
         alt = _nominal_bending(nominal_bending[0], r_pick, a_start, arr, params, settings, J, n_fit, n_t,
                                damping, exact_start, inputs, ports, terms, lm, blocks)
