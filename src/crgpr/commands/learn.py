@@ -432,7 +432,7 @@ def _record_fit(cfg: dict[str, Any], out: Path, arr: dict[str, np.ndarray], para
     data decide, ``nominal_laws: auto``, and some law or a damping learned) the learned rod is
     also compared with the nominal one; with ``bending_scale`` (a damped rod's learned bending
     law) with the rod whose bending law is the nominal one, warped about kappa0 on that scale;
-    with ``profile_terms`` (S, R) a profile along s is offered too (``_profile_terms``); with
+    with ``profile_terms`` (S, R, level) a profile along s is offered too (``_profile_terms``); with
     ``reach`` the warped law is continued beyond it (``learning.extrapolation``) in every
     rollout of the fit, as the model's rollouts will continue it."""
     man = {"rod": params.to_dict(), "features": "objective", "nominal_laws": nominal, "models": trained}

@@ -26,8 +26,8 @@ Parameters (``RecordFit``):
   and a rest-curvature shift d(s) = sum_{j < R} c_j P_j(2 s/L - 1) (``warp.rest_shift``):
   m(kappa, s) <- m(kappa - d(s), s) w(kappa - d(s)) v(s); the positions' curvature
   reconstruction smooths the law along s, and the motion shows what it misses. To a law without
-  s mirrored about a rest curvature the data estimated, the shift d(s) alone (one c cannot hold
-  a rest curvature that varies along the rod);
+  s mirrored about a rest curvature the data estimated, the shift's variation along s alone
+  (c_0 = 0: one c cannot hold a rest curvature that varies along the rod);
 * the record's initial state, from positions (camera data): the derived angles theta_0(s) and
   rates omega_0(s) at its first kept frame, each corrected by sum_{j = 1..J} b_j (s / L)^j (zero
   at the clamp); positions and velocities are rebuilt from them at the nominal strains nu^0 from
@@ -97,7 +97,7 @@ from scipy.stats import chi2
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.learning.lm import levenberg_marquardt
 from crgpr.learning.record_select import batch_rows, select_terms
-from crgpr.learning.record_stats import decide, truncation, warp_covariance
+from crgpr.learning.record_stats import coefficient_wald, decide, truncation, warp_covariance
 from crgpr.learning.warp import admissible
 from crgpr.physics.integrator import SimulationDiverged
 from crgpr.physics.params import RodParams, SimSettings
@@ -160,30 +160,18 @@ class RecordFit:
     rest_coefficients: list[float] = field(default_factory=list)  # a kept profile's c_j [1/m] (rest_shift)
     rest_terms: int = 0  # the profile candidate's number of rest-curvature terms R
     profile_log_ratio: float = math.nan  # mean per-block log(held-out error: pick / pick with v(s)) [-]
-    rest_wald: float = math.nan  # c^T cov^-1 c of the rest shift fitted on the first part [-]
-    rest_fitted: list[float] = field(default_factory=list)  # that fit's c_j, kept or not [1/m]
-    rest_fitted_sd: list[float] = field(default_factory=list)  # their sd (warp_covariance) [1/m]
     profile_log_ratio_se: float = math.nan  # its standard error [-]
     rest_log_ratio: float = math.nan  # the same for the rest shift d(s), on top of the pick then [-]
     rest_log_ratio_se: float = math.nan  # its standard error [-]
+    rest_wald: float = math.nan  # c^T cov^-1 c of the rest shift's free c_j fitted on the first part [-]
+    rest_fitted: list[float] = field(default_factory=list)  # that fit's free c_j, kept or not [1/m]
+    rest_fitted_sd: list[float] = field(default_factory=list)  # their sd (warp_covariance) [1/m]
     truncation_coefficients: list[float] = field(default_factory=list)  # a kept warp's truncation d_k
     truncation_terms: int = -1  # the candidate K' it compares with (0: no warp; -1: none kept)
     tail_log_factor: float = 0.0  # log of the tail factor g of the law's tangent (``tail_factor``; 0: g = 1)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
-
-
-def coefficient_wald(r: np.ndarray, J: np.ndarray, n_frames: int, free: np.ndarray, block: np.ndarray,
-                     a: np.ndarray) -> tuple[float, list[float]]:
-    """The Wald statistic a_b^T C_b^-1 a_b of the free parameters ``block`` (indices) of a fit at
-    ``a`` (residuals r, Jacobian J over the ``free`` parameters, ``n_frames`` frames), C_b their
-    covariance (``record_stats.warp_covariance``, inflated by the residuals' correlation times),
-    and their sd."""
-    cols = np.searchsorted(np.flatnonzero(free), block)
-    C = warp_covariance(r, J, n_frames, J.shape[1])[np.ix_(cols, cols)]
-    ab = np.asarray(a, dtype=float)[block]
-    return float(ab @ np.linalg.pinv(C) @ ab), [float(v) for v in np.sqrt(np.maximum(np.diag(C), 0.0))]
 
 
 def start_state(arr: dict[str, np.ndarray], params: RodParams, b: np.ndarray, modes: int

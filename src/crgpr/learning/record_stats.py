@@ -1,5 +1,6 @@
 """Statistics of the record fit (``learning.record_fit``): its held-out decision, the covariance
-of a kept warp's coefficients and the warp's truncation estimate."""
+of a kept warp's coefficients, the Wald statistic of a block of them and the warp's truncation
+estimate."""
 
 from __future__ import annotations
 
@@ -45,4 +46,16 @@ def truncation(fits: list[np.ndarray], terms: list[int], i: int, w0: int) -> dic
             "truncation_terms": terms[j] if j >= 0 else 0}
 
 
-__all__ = ["decide", "truncation", "warp_covariance"]
+def coefficient_wald(r: np.ndarray, J: np.ndarray, n_frames: int, free: np.ndarray, block: np.ndarray,
+                     a: np.ndarray) -> tuple[float, list[float]]:
+    """The Wald statistic a_b^T C_b^-1 a_b of the free parameters ``block`` (indices) of a fit at
+    ``a`` (residuals r, Jacobian J over the ``free`` parameters, ``n_frames`` frames), C_b their
+    covariance (``warp_covariance``, inflated by the residuals' correlation times),
+    and their sd."""
+    cols = np.searchsorted(np.flatnonzero(free), block)
+    C = warp_covariance(r, J, n_frames, J.shape[1])[np.ix_(cols, cols)]
+    ab = np.asarray(a, dtype=float)[block]
+    return float(ab @ np.linalg.pinv(C) @ ab), [float(v) for v in np.sqrt(np.maximum(np.diag(C), 0.0))]
+
+
+__all__ = ["coefficient_wald", "decide", "truncation", "warp_covariance"]
