@@ -92,7 +92,6 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
 from crgpr.learning.learned import LearnedRod, free_angles_at, record_settings, rollout
 from crgpr.learning.lm import levenberg_marquardt
@@ -115,6 +114,14 @@ def tail_factor(log_g: np.ndarray | float) -> np.ndarray:
     return np.exp(np.clip(np.asarray(log_g, dtype=float), -TAIL_LOG_BOUND, TAIL_LOG_BOUND))
 
 P95 = 0.95  # the rest shift's Wald test's level: that of every held-out choice's 1.96 standard errors
+
+
+def _chi2_quantile(p: float, dof: int) -> float:
+    """The chi-squared distribution's p-quantile (scipy.stats imported here: it costs every
+    rule's job half a second at import)."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(p, dof))
 
 
 @dataclass(frozen=True)
@@ -458,7 +465,7 @@ def fit_record(law_rod: Callable[[np.ndarray, float], LearnedRod], arr: dict[str
                 wald, wald_sd = coefficient_wald(fin["r"], fin["J"], n_fit, free, np.flatnonzero(on_b), a_s)
                 profile.update(rest_fitted=[float(v) for v in a_s[on_b]], rest_fitted_sd=wald_sd,
                                rest_wald=wald)
-                resolved = not better and wald > float(chi2.ppf(P95, int(on_b.sum()))) and p_ratio > 0.0
+                resolved = not better and wald > _chi2_quantile(P95, int(on_b.sum())) and p_ratio > 0.0
                 better = better or resolved
             if better:
                 along, a_pick, r_pick = along | on_b, a_s, r_s
