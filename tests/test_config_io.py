@@ -64,11 +64,19 @@ def test_default_config_is_the_paper():
         ({"rod": {"zeta": float("inf")}}, "rod.zeta"),
         ({"prefilter": {"noise_var_min": float("nan")}}, "prefilter.noise_var_min"),
         ({"simulation": {"t_end_s": 0.01, "dt_s": 3.0e-5}}, "simulation.t_end_s / simulation.dt_s"),
+        ({"discovery": {"sweep_cases": ["no_such_case"]}}, "discovery.sweep_cases"),
+        ({"discovery": {"sweep_cases": ["tip_mass", "tip_mass"]}}, "discovery.sweep_cases"),
     ],
 )
 def test_bad_config_names_the_key(override, key):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         load_config(CONFIG, override)
+
+
+def test_discovery_sweep_cases_must_leave_a_case_for_all():
+    names = [c["name"] for c in load_config(CONFIG)["discovery"]["cases"]]
+    with pytest.raises(ConfigError, match=r"discovery\.sweep_cases leaves no case for `all`"):
+        load_config(CONFIG, {"discovery": {"sweep_cases": names}})
 
 
 def test_missing_config_file(tmp_path):

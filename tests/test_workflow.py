@@ -115,7 +115,8 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         "table1_accuracy.csv": [], "table2_hyperparameters.csv": ["model", "sigma_f", "sigma_n", "n"],
         "table4_ablation.csv": [], "baselines.csv": [],
         "uq_coverage.csv": ["method", "theta0_deg", "level", "theta_coverage", "expected_coverage"],
-        "discovery.csv": [], "paper_claims.csv": ["id", "verdict"],
+        "discovery.csv": ["case", "hidden", "named", "verdict"], "discovery_sweeps.csv": ["case", "verdict"],
+        "uq_function_calibration.csv": [], "paper_claims.csv": ["id", "verdict"],
         "noise_ablation.csv": ["noise_mm", "prefilter", "features", "rmse_theta_mean", "divergences"],
         "crgpr_sensitivity.csv": ["variant", "method", "overlay", "rmse_theta_mean", "divergences"],
         "oracle_ablation.csv": ["variant", "theta0_deg", "rmse_theta"],
@@ -130,6 +131,9 @@ def test_smoke_dag_runs_end_to_end(smoke_repo, smoke_run):
         assert len(df) > 0, name
         assert set(cols) <= set(df.columns), (name, list(df.columns))
     assert (tables / "paper_vs_reproduction.md").read_text().startswith("# Paper vs reproduction")
+    # discovery: `all` tabulates the cases not in discovery.sweep_cases, `sweeps` every case
+    assert set(pd.read_csv(tables / "discovery.csv")["case"]) == {"tip_mass"}
+    assert set(pd.read_csv(tables / "discovery_sweeps.csv")["case"]) == {"tip_mass", "none"}
     act = pd.read_csv(tables / "actuated_accuracy.csv")
     assert set(act["method"]) == {"cr_gpr_objective", "cr_gpr_objective_camera", "cr_gpr", "nominal_prior",
                                   "blackbox_gp"}
