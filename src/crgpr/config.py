@@ -218,14 +218,13 @@ def check_config(cfg: dict[str, Any], source: str = "config") -> None:
     if ang["train_deg"] not in ang["pinn_train_deg"]:
         raise ConfigError(f"{source}: angles.pinn_train_deg must include angles.train_deg "
                           f"({ang['train_deg']})")
-    disc = cfg.get("discovery")
-    if disc is not None:
-        names = [c["name"] for c in disc["cases"]]
-        unknown = sorted(set(disc["sweep_cases"]) - set(names))
-        if unknown:
-            raise ConfigError(f"{source}: discovery.sweep_cases {unknown} are not names of discovery.cases")
-        if not set(names) - set(disc["sweep_cases"]):
-            raise ConfigError(f"{source}: discovery.sweep_cases leaves no case for `all`")
+    disc = cfg["discovery"]  # a required section: the schema has checked it is there
+    names = [c["name"] for c in disc["cases"]]
+    unknown = sorted(set(disc["sweep_cases"]) - set(names))
+    if unknown:
+        raise ConfigError(f"{source}: discovery.sweep_cases {unknown} are not names of discovery.cases")
+    if not set(names) - set(disc["sweep_cases"]):
+        raise ConfigError(f"{source}: discovery.sweep_cases leaves no case for `all`")
     ro = cfg["rollouts"]
     unknown = sorted(set(ro["study_methods"]) - set(ro["methods"]))
     if unknown:
