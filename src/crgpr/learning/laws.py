@@ -49,7 +49,6 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 
@@ -190,6 +189,8 @@ def _odd_fit(kappa: np.ndarray, m: np.ndarray, degree: int, scale: float, rows: 
     pre-curved rod's full state: c = 176 /m for a true 1.5); so each group's zero crossing
     (``_zero_crossings``) and their median are candidates too, each refined by a zoom (grids of
     21 points over +-1, +-0.1, +-0.01 grid steps) and a bounded search; the lowest residual wins."""
+    from scipy.optimize import minimize_scalar  # here: most rules import this module, few fit a law
+
     lo, hi = float(kappa.min()), float(kappa.max())
     span = max(hi - lo, 1e-12)
 
