@@ -203,6 +203,7 @@ def test_finer_simulator_data(tmp_path):
     the camera or at 51 markers: learning runs on the camera's grid and the learned rod
     lives on it."""
     cfg = load_config(SMOKE)
+    cfg["camera"]["learn"]["record_fit"]["mode"] = "none"  # the grids are the subject, not the record fit
     fine = paper_rod(N=50)
     tr = simulate(85.0, fine, SimSettings(dt=5e-5, t_end=0.3, record_every=80, scheme="variational"))
     for stride, n in ((2, 25), (1, 50)):

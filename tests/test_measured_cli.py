@@ -34,7 +34,8 @@ CONFIG = ROOT / "config.yaml"
 # small and quick: fewer bootstrap replicates and fit evaluations, fewer frames and LML points;
 # each is a --set, so the same runs check that --set reaches the output and its manifest
 DISCOVER_SETS = ["discovery.bootstrap_replicates=1", "discovery.refine_max_nfev=10"]
-LEARN_SETS = ["gradient_models.n_hyper=200", "camera.learn.n_t_out=40", "E=3.3e6"]
+LEARN_SETS = ["gradient_models.n_hyper=200", "camera.learn.n_t_out=40", "E=3.3e6",
+              "camera.learn.record_fit.mode=none"]  # what is read and stored, not the fit to the record
 
 
 @pytest.fixture(scope="module")
@@ -200,6 +201,7 @@ def test_learn_from_an_empty_directory_csv_equals_parquet(elsewhere, record):
     assert used["config"] == "the packaged default config" and used["set"] == LEARN_SETS
     assert used["rod"]["E"] == man["rod"]["E"] == 3.3e6  # --set E reached the model's rod
     assert used["gradient_models"]["n_hyper"] == 200 and used["camera"]["learn"]["n_t_out"] == 40
+    assert used["camera"]["learn"]["record_fit"]["mode"] == "none" and man["record_fit"] is None
     assert man["state"]["n_frames_used"] == 40
     assert set(used["discovery"]) == {"min_rate_hz", "min_samples", "outlier_k", "outlier_min_m",
                                       "geometry_tol"}
@@ -208,7 +210,7 @@ def test_learn_from_an_empty_directory_csv_equals_parquet(elsewhere, record):
 def test_learn_takes_the_config_file_given(elsewhere, record):
     smoke = ROOT / "tests" / "smoke_config.yaml"
     assert main(["learn", "--measured", str(record["parquet"]), "--out", "m", "--config", str(smoke),
-                 "--set", "camera.learn.n_t_out=30"]) == 0
+                 "--set", "camera.learn.n_t_out=30", "--set", "camera.learn.record_fit.mode=none"]) == 0
     man = json.loads((elsewhere / "m" / "manifest.json").read_text())
     assert man["config"]["config"] == str(smoke)
     assert man["config"]["gradient_models"] == load_config(smoke)["gradient_models"]
